@@ -1,0 +1,1 @@
+"""Converters from other tools' outputs to anchored assets (installed as ``gsverse_format.converters``)."""

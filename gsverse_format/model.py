@@ -1,0 +1,293 @@
+"""In-memory data model: free splats, triangle meshes, anchors, assets.
+
+Conventions (the same as ``KHR_gaussian_splatting``; see ``spec/README.md``):
+
+* ``means``      (N, 3) float32, in the asset's local coordinate system (glTF: metres, +Y up).
+* ``rotations``  (N, 4) float32 unit quaternions, **(x, y, z, w)**.
+* ``scales``     (N, 3) float32 **linear** standard deviations along the rotated axes (never log).
+* ``opacities``  (N,)   float32 **linear** in [0, 1] (post-sigmoid).
+* ``sh``         (N, K, 3) float32 real spherical-harmonic coefficients, **coefficient-major**,
+  K = (degree + 1)², degree 0..3, coefficient ``k = l² + (m + l)``; ``sh[:, 0]`` is the raw
+  3DGS ``f_dc`` (colour = 0.5 + 0.28209479177387814 · sh[:, 0]).
+
+Covariance of splat i is ``R_i diag(scales_i)² R_iᵀ``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal, Union
+
+import numpy as np
+
+from .errors import FormatError
+
+__all__ = [
+    "SplatCloud",
+    "TriangleMesh",
+    "LocalAnchors",
+    "GamesAnchors",
+    "Anchors",
+    "Anchoring",
+    "SplatPrimitive",
+    "SplatAsset",
+    "sh_coefficient_count",
+    "sh_degree_for_count",
+    "COLOR_SPACES",
+]
+
+#: The colour spaces ``KHR_gaussian_splatting`` defines (open enumeration).
+COLOR_SPACES = ("srgb_rec709_display", "lin_rec709_display")
+
+DeformationLaw = Literal["affine", "rigid"]
+
+
+def sh_coefficient_count(degree: int) -> int:
+    """Number of SH coefficients per colour channel for ``degree`` (0..3): (degree+1)²."""
+    if degree not in (0, 1, 2, 3):
+        raise ValueError(f"SH degree must be 0..3, got {degree}")
+    return (degree + 1) ** 2
+
+
+def sh_degree_for_count(count: int) -> int:
+    """Inverse of :func:`sh_coefficient_count`; raises ``ValueError`` for other counts."""
+    for degree in range(4):
+        if (degree + 1) ** 2 == count:
+            return degree
+    raise ValueError(f"{count} SH coefficients per channel is not (d+1)^2 for d in 0..3")
+
+
+def _as(array, dtype, shape_tail: tuple, name: str, n: int | None = None) -> np.ndarray:
+    a = np.ascontiguousarray(np.asarray(array), dtype=dtype)
+    if a.ndim != 1 + len(shape_tail) or tuple(a.shape[1:]) != shape_tail:
+        raise ValueError(f"{name} must have shape (N, {', '.join(map(str, shape_tail))}), got {a.shape}"
+                         if shape_tail else f"{name} must have shape (N,), got {a.shape}")
+    if n is not None and a.shape[0] != n:
+        raise ValueError(f"{name} has {a.shape[0]} rows, expected {n}")
+    return a
+
+
+@dataclass
+class SplatCloud:
+    """Free (unanchored) Gaussian splats in the ``KHR_gaussian_splatting`` convention.
+
+    ``extra`` keeps per-splat properties a source file carried that have no place in the
+    model (for example ``filter_3D`` or ``binding_0``), as float arrays of length N, so
+    writers that can store them do.
+    """
+
+    means: np.ndarray
+    rotations: np.ndarray
+    scales: np.ndarray
+    opacities: np.ndarray
+    sh: np.ndarray
+    color_space: str = "srgb_rec709_display"
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.means = _as(self.means, np.float32, (3,), "means")
+        n = self.means.shape[0]
+        self.rotations = _as(self.rotations, np.float32, (4,), "rotations", n)
+        self.scales = _as(self.scales, np.float32, (3,), "scales", n)
+        self.opacities = _as(self.opacities, np.float32, (), "opacities", n)
+        sh = np.ascontiguousarray(np.asarray(self.sh), dtype=np.float32)
+        if sh.ndim != 3 or sh.shape[0] != n or sh.shape[2] != 3:
+            raise ValueError(f"sh must have shape (N, K, 3) with N={n}, got {sh.shape}")
+        sh_degree_for_count(sh.shape[1])  # raises for invalid K
+        self.sh = sh
+        self.extra = {k: _as(v, np.float32, (), f"extra[{k!r}]", n) for k, v in self.extra.items()}
+
+    def __len__(self) -> int:
+        return int(self.means.shape[0])
+
+    @property
+    def sh_degree(self) -> int:
+        return sh_degree_for_count(self.sh.shape[1])
+
+    def covariances(self) -> np.ndarray:
+        """(N, 3, 3) float64 covariance matrices R diag(s)² Rᵀ."""
+        from .quaternion import to_matrix
+
+        r = to_matrix(self.rotations)
+        rs = r * self.scales.astype(np.float64)[:, None, :]
+        return rs @ np.swapaxes(rs, -1, -2)
+
+    def subset(self, index) -> "SplatCloud":
+        """Splats selected by an index array or boolean mask (copies)."""
+        return SplatCloud(self.means[index], self.rotations[index], self.scales[index],
+                          self.opacities[index], self.sh[index], self.color_space,
+                          {k: v[index] for k, v in self.extra.items()})
+
+    def with_sh_degree(self, degree: int) -> "SplatCloud":
+        """A copy truncated (or zero-padded) to SH ``degree``."""
+        k = sh_coefficient_count(degree)
+        sh = np.zeros((len(self), k, 3), np.float32)
+        keep = min(k, self.sh.shape[1])
+        sh[:, :keep] = self.sh[:, :keep]
+        return SplatCloud(self.means, self.rotations, self.scales, self.opacities, sh,
+                          self.color_space, dict(self.extra))
+
+    @staticmethod
+    def concatenate(clouds: "list[SplatCloud]") -> "SplatCloud":
+        """Join clouds (SH padded to the highest degree; extras kept where all have them)."""
+        if not clouds:
+            raise ValueError("nothing to concatenate")
+        degree = max(c.sh_degree for c in clouds)
+        clouds = [c.with_sh_degree(degree) for c in clouds]
+        common = set.intersection(*(set(c.extra) for c in clouds))
+        return SplatCloud(
+            np.concatenate([c.means for c in clouds]),
+            np.concatenate([c.rotations for c in clouds]),
+            np.concatenate([c.scales for c in clouds]),
+            np.concatenate([c.opacities for c in clouds]),
+            np.concatenate([c.sh for c in clouds]),
+            clouds[0].color_space,
+            {k: np.concatenate([c.extra[k] for c in clouds]) for k in sorted(common)},
+        )
+
+
+@dataclass
+class TriangleMesh:
+    """An indexed triangle mesh: ``vertices`` (V, 3) float32, ``faces`` (F, 3) uint32.
+
+    Face ``f`` has corners ``vertices[faces[f, 0]]``, ``[f, 1]``, ``[f, 2]`` — the order
+    fixes the triangle frame (``spec/README.md`` §Triangle frame). Vertices are stored as
+    float32 because that is what files hold; computations promote them to float64.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.vertices = _as(self.vertices, np.float32, (3,), "vertices")
+        faces = np.asarray(self.faces)
+        if faces.ndim != 2 or faces.shape[1] != 3:
+            raise ValueError(f"faces must have shape (F, 3), got {faces.shape}")
+        if faces.size and (faces.min() < 0 or faces.max() >= len(self.vertices)):
+            raise FormatError(f"face indices must be in [0, {len(self.vertices)}), "
+                              f"found range [{faces.min()}, {faces.max()}]")
+        self.faces = np.ascontiguousarray(faces, dtype=np.uint32)
+
+    @property
+    def face_count(self) -> int:
+        return int(self.faces.shape[0])
+
+    def triangles(self, vertices: np.ndarray | None = None) -> np.ndarray:
+        """(F, 3, 3) float64 corner positions, from ``vertices`` (default: the rest vertices)."""
+        v = self.vertices if vertices is None else np.asarray(vertices)
+        return np.asarray(v, dtype=np.float64)[self.faces.astype(np.intp)]
+
+
+@dataclass
+class LocalAnchors:
+    """``local`` profile: each splat stored relative to its triangle's frame.
+
+    * ``face_index``     (N,) uint32 — triangle of the anchor mesh.
+    * ``barycentrics``   (N, 2) float32 — weights (b1, b2) of corners 1 and 2; b0 = 1 − b1 − b2.
+      They locate the foot point of the splat in the triangle's plane (may lie outside the
+      triangle when the nearest point is on an edge or corner).
+    * ``normal_offset``  (N,) float32 — signed distance along the unit normal at rest.
+    * ``local_rotation`` (N, 4) float32 — unit quaternion (x, y, z, w) relative to the rest frame.
+    * ``local_scale``    (N, 3) float32 — linear scales at rest (equal to the rest-pose SCALE).
+    * ``deformation``    ``"affine"`` or ``"rigid"`` (spec §Deformation laws).
+    """
+
+    face_index: np.ndarray
+    barycentrics: np.ndarray
+    normal_offset: np.ndarray
+    local_rotation: np.ndarray
+    local_scale: np.ndarray
+    deformation: DeformationLaw = "affine"
+    profile: Literal["local"] = field(default="local", init=False)
+
+    def __post_init__(self) -> None:
+        self.face_index = _as(self.face_index, np.uint32, (), "face_index")
+        n = self.face_index.shape[0]
+        self.barycentrics = _as(self.barycentrics, np.float32, (2,), "barycentrics", n)
+        self.normal_offset = _as(self.normal_offset, np.float32, (), "normal_offset", n)
+        self.local_rotation = _as(self.local_rotation, np.float32, (4,), "local_rotation", n)
+        self.local_scale = _as(self.local_scale, np.float32, (3,), "local_scale", n)
+        if self.deformation not in ("affine", "rigid"):
+            raise ValueError(f"deformation must be 'affine' or 'rigid', got {self.deformation!r}")
+
+    def __len__(self) -> int:
+        return int(self.face_index.shape[0])
+
+    def subset(self, index) -> "LocalAnchors":
+        return LocalAnchors(self.face_index[index], self.barycentrics[index], self.normal_offset[index],
+                            self.local_rotation[index], self.local_scale[index], self.deformation)
+
+
+@dataclass
+class GamesAnchors:
+    """``games`` profile (GaMeS / GS-Verse): frame and scales rebuilt from the triangle.
+
+    * ``face_index``   (N,) uint32.
+    * ``barycentrics`` (N, 2) float32 — normalized GaMeS weights (α1, α2); α0 = 1 − α1 − α2.
+    * ``rho``          (N,) float32 — GaMeS scalar scale ρ (multiplies all three axes).
+    """
+
+    face_index: np.ndarray
+    barycentrics: np.ndarray
+    rho: np.ndarray
+    profile: Literal["games"] = field(default="games", init=False)
+
+    def __post_init__(self) -> None:
+        self.face_index = _as(self.face_index, np.uint32, (), "face_index")
+        n = self.face_index.shape[0]
+        self.barycentrics = _as(self.barycentrics, np.float32, (2,), "barycentrics", n)
+        self.rho = _as(self.rho, np.float32, (), "rho", n)
+
+    def __len__(self) -> int:
+        return int(self.face_index.shape[0])
+
+    def subset(self, index) -> "GamesAnchors":
+        return GamesAnchors(self.face_index[index], self.barycentrics[index], self.rho[index])
+
+
+Anchors = Union[LocalAnchors, GamesAnchors]
+
+
+@dataclass
+class Anchoring:
+    """Binds the splats of one primitive to an anchor ``mesh`` (its rest pose)."""
+
+    mesh: TriangleMesh
+    anchors: Anchors
+
+    def __post_init__(self) -> None:
+        fi = self.anchors.face_index
+        if fi.size and int(fi.max()) >= self.mesh.face_count:
+            raise FormatError(f"anchor face index {int(fi.max())} out of range for a mesh "
+                              f"with {self.mesh.face_count} faces")
+
+
+@dataclass
+class SplatPrimitive:
+    """One splat primitive of an asset: splats (rest pose) and, optionally, their anchoring."""
+
+    splats: SplatCloud
+    anchoring: Anchoring | None = None
+    name: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.anchoring is not None and len(self.anchoring.anchors) != len(self.splats):
+            raise ValueError(f"{len(self.anchoring.anchors)} anchors for {len(self.splats)} splats")
+
+
+@dataclass
+class SplatAsset:
+    """What one file holds: splat primitives, anchored or plain (static)."""
+
+    primitives: list[SplatPrimitive] = field(default_factory=list)
+    generator: str | None = None
+
+    @property
+    def anchored(self) -> list[SplatPrimitive]:
+        return [p for p in self.primitives if p.anchoring is not None]
+
+    @property
+    def static(self) -> list[SplatPrimitive]:
+        return [p for p in self.primitives if p.anchoring is None]
+
+    def splat_count(self) -> int:
+        return sum(len(p.splats) for p in self.primitives)

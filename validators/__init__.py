@@ -1,0 +1,1 @@
+"""Asset validation (installed as ``gsverse_format.validators``)."""
