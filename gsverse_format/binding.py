@@ -1,0 +1,71 @@
+"""Binding free splats to an anchor mesh (``local`` profile).
+
+Each splat is bound to its exact nearest triangle (certified, see :mod:`gsverse_format.nearest`);
+faces that are degenerate at rest are never chosen. The splat's mean is then expressed in that
+triangle's rest frame (spec §Triangle frames): the foot point of the mean in the triangle's
+plane as barycentrics (b1, b2) — outside the triangle when the nearest point lies on an edge or
+corner — plus the signed offset d along the unit normal. The splat's rotation is stored
+relative to the rest frame and its scale as is, so that ``remap(rest vertices)`` reproduces the
+input splats up to float32 rounding of the stored anchors.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from . import quaternion as quat
+from .errors import BindingError
+from .frames import local_frames
+from .model import LocalAnchors, SplatCloud, TriangleMesh
+from .nearest import nearest_triangles
+
+__all__ = ["BindResult", "bind_local"]
+
+
+@dataclass
+class BindResult:
+    """Anchors plus what the binder measured: ``distance`` (N,) from each mean to its face."""
+
+    anchors: LocalAnchors
+    distance: np.ndarray
+    degenerate_faces: int
+
+
+def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "affine",
+               progress: Callable[[int, int], None] | None = None) -> BindResult:
+    """Bind every splat of ``splats`` to its nearest non-degenerate face of ``mesh``."""
+    if mesh.face_count == 0:
+        raise BindingError("the anchor mesh has no triangles")
+    tri = mesh.triangles()
+    frames = local_frames(tri)
+    if not np.any(frames.regular):
+        raise BindingError(f"all {mesh.face_count} triangles of the anchor mesh are degenerate")
+    means = splats.means.astype(np.float64)
+    if len(splats) == 0:
+        empty = np.zeros(0)
+        return BindResult(LocalAnchors(np.zeros(0, np.uint32), np.zeros((0, 2)), empty,
+                                       np.zeros((0, 4)), np.zeros((0, 3)), deformation), empty,
+                          int(np.count_nonzero(~frames.regular)))
+    kwargs = {"exclude": ~frames.regular}
+    if progress is not None:
+        kwargs["progress"] = progress
+    nearest = nearest_triangles(means, mesh.vertices.astype(np.float64),
+                                mesh.faces.astype(np.int64), **kwargs)
+    face = nearest.face.astype(np.intp)
+
+    rot = frames.rotation[face]                      # columns t, b, n
+    rel = means - tri[face, 0]
+    local = np.einsum("nji,nj->ni", rot, rel)        # (x, y, z) in the frame = Rᵀ rel
+    c = frames.shape[face]
+    b2 = local[:, 1] / c[:, 1, 1]
+    b1 = (local[:, 0] - c[:, 0, 1] * b2) / c[:, 0, 0]
+    offset = local[:, 2]
+
+    q_frame = quat.from_matrix(rot)
+    q_local = quat.canonical_sign(quat.multiply(quat.conjugate(q_frame),
+                                                quat.normalize(splats.rotations)))
+    anchors = LocalAnchors(face.astype(np.uint32), np.stack([b1, b2], axis=-1), offset,
+                           q_local, splats.scales, deformation)
+    return BindResult(anchors, nearest.distance, int(np.count_nonzero(~frames.regular)))

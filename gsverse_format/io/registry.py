@@ -1,0 +1,65 @@
+"""One registry for splat-asset formats, keyed by file extension (like meshio).
+
+Every reader returns a :class:`SplatAsset` in the glTF coordinate frame (+Y up); every writer
+takes one. PLY files are in the 3DGS frame: by default the PLY reader/writer here rotate 180°
+about Z on the way in and out (see :mod:`gsverse_format.transform`); pass
+``frame_change=False`` to keep coordinates as they are.
+"""
+from __future__ import annotations
+
+import os
+from typing import Iterable
+
+from ..errors import UsageError
+from ..model import SplatAsset, SplatCloud, SplatPrimitive
+from ..transform import PLY_TO_GLTF, rotate_splats
+
+SPLAT_INPUTS = (".ply", ".glb", ".gltf")
+SPLAT_OUTPUTS = (".glb", ".gltf", ".ply")
+
+
+def _ext(path: str | os.PathLike) -> str:
+    return os.path.splitext(os.fspath(path))[1].lower()
+
+
+def read_asset(path: str | os.PathLike, *, frame_change: bool = True) -> SplatAsset:
+    """Read splats from a 3DGS PLY or a KHR_gaussian_splatting glTF/GLB file."""
+    ext = _ext(path)
+    if ext == ".ply":
+        from .ply import read_splat_ply
+
+        cloud = read_splat_ply(path)
+        if frame_change:
+            cloud = rotate_splats(cloud, PLY_TO_GLTF)
+        name = os.path.splitext(os.path.basename(os.fspath(path)))[0]
+        return SplatAsset([SplatPrimitive(cloud, None, name)])
+    if ext in (".glb", ".gltf"):
+        from .gltf import read_gltf
+
+        return read_gltf(path)
+    raise UsageError(f"unsupported splat input format {ext or '(no extension)'}; "
+                     f"use one of {', '.join(SPLAT_INPUTS)}", path)
+
+
+def write_asset(asset: SplatAsset, path: str | os.PathLike, *, frame_change: bool = True,
+                protect: Iterable[str | os.PathLike] = ()) -> None:
+    """Write ``asset``; PLY output holds all splats of all primitives (no anchoring)."""
+    ext = _ext(path)
+    protect = tuple(protect)
+    if ext in (".glb", ".gltf"):
+        from .gltf import write_gltf
+
+        write_gltf(asset, path, protect=protect)
+        return
+    if ext == ".ply":
+        from .ply import write_splat_ply
+
+        if not asset.primitives:
+            raise UsageError("nothing to write: the asset has no splats", path)
+        cloud = SplatCloud.concatenate([p.splats for p in asset.primitives])
+        if frame_change:
+            cloud = rotate_splats(cloud, PLY_TO_GLTF)
+        write_splat_ply(cloud, path, protect=protect)
+        return
+    raise UsageError(f"unsupported output format {ext or '(no extension)'}; "
+                     f"use one of {', '.join(SPLAT_OUTPUTS)}", path)

@@ -1,0 +1,35 @@
+"""Rigid changes of coordinate frame for splats and meshes.
+
+3DGS PLY files follow the capture convention of the original 3DGS code (COLMAP-style camera
+frame, +Y down), glTF is +Y up. Like PlayCanvas splat-transform, the converter maps PLY data to
+glTF by a rotation of 180° about Z, ``(x, y, z) -> (−x, −y, z)``, and back when writing PLY.
+Rotating splats rotates means, orientations and the view-dependent SH coefficients.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import quaternion as quat
+from .model import TriangleMesh, SplatCloud
+from .sh import rotate_sh
+
+#: PLY (3DGS) frame -> glTF frame: 180° about +Z (its own inverse).
+PLY_TO_GLTF = np.diag([-1.0, -1.0, 1.0])
+
+
+def rotate_splats(cloud: SplatCloud, rotation: np.ndarray) -> SplatCloud:
+    """Splats rotated by the proper rotation matrix ``rotation`` (3x3) about the origin."""
+    r = np.asarray(rotation, dtype=np.float64)
+    if not np.allclose(r @ r.T, np.eye(3), atol=1e-12) or np.linalg.det(r) < 0:
+        raise ValueError("rotation must be a proper rotation matrix")
+    means = cloud.means.astype(np.float64) @ r.T
+    q = quat.multiply(quat.from_matrix(r), quat.normalize(cloud.rotations))
+    sh = rotate_sh(cloud.sh, r) if cloud.sh_degree > 0 else cloud.sh
+    return SplatCloud(means, quat.canonical_sign(q), cloud.scales, cloud.opacities, sh,
+                      cloud.color_space, dict(cloud.extra))
+
+
+def rotate_mesh(mesh: TriangleMesh, rotation: np.ndarray) -> TriangleMesh:
+    """Mesh with vertices rotated by ``rotation`` (faces and their corner order unchanged)."""
+    return TriangleMesh(mesh.vertices.astype(np.float64) @ np.asarray(rotation, np.float64).T,
+                        mesh.faces)
