@@ -9,6 +9,12 @@ from typing import IO, Iterator
 from .errors import UsageError
 
 
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_write(path: str | os.PathLike, mode: str = "wb",
                  protect: tuple[str | os.PathLike, ...] = ()) -> Iterator[IO]:
@@ -29,6 +35,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb",
         raise UsageError(f"output folder {folder!r} does not exist", path)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=os.path.basename(path)[-16:], dir=folder)
     try:
+        os.chmod(tmp, 0o666 & ~_current_umask())  # mkstemp creates 0600; behave like open()
         with os.fdopen(fd, mode) as handle:
             yield handle
             handle.flush()

@@ -27,7 +27,7 @@ def example_mesh(subdivisions: int = 3, seed: int = 0) -> TriangleMesh:
     ico = trimesh.creation.icosphere(subdivisions=subdivisions)
     v = ico.vertices * [0.5, 0.8, 0.5]
     rng = np.random.default_rng(seed)
-    bumps = 1.0 + 0.06 * np.sin(7 * v[:, 0]) * np.cos(5 * v[:, 1]) + 0.01 * rng.standard_normal((len(v), 1))
+    bumps = 1.0 + 0.06 * np.sin(7 * v[:, 0:1]) * np.cos(5 * v[:, 1:2]) + 0.01 * rng.standard_normal((len(v), 1))
     return TriangleMesh(v * bumps, ico.faces)
 
 

@@ -2,7 +2,8 @@
 
 Vertex and face order are kept as the file has them (``process=False``): converters that bind
 by face index (SuGaR, GaMeS) depend on it. Polygons are fan-triangulated by trimesh. glTF
-scenes are flattened with their node transforms applied.
+scenes are flattened with their node transforms applied (by the project's own hardened
+glTF reader, which never follows URIs outside the asset's folder).
 """
 from __future__ import annotations
 
@@ -28,10 +29,11 @@ def read_mesh(path: str | os.PathLike) -> TriangleMesh:
                           f"use one of {', '.join(MESH_EXTENSIONS)}", path)
     if not os.path.isfile(path):
         raise FormatError("file not found", path)
-    if ext == ".gltf":
-        # Reuse the hardened glTF container checks (URIs confined to the asset folder).
-        from .gltf import read_triangle_mesh_gltf  # noqa: WPS433
-        return read_triangle_mesh_gltf(path)
+    if ext in (".glb", ".gltf"):
+        # The hardened glTF reader (bounds checks, URIs confined to the asset's folder).
+        from .gltf import read_gltf_triangles
+
+        return read_gltf_triangles(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
