@@ -890,7 +890,8 @@ def _check_header(gltf: pygltflib.GLTF2) -> None:
             raise FormatError(f"the asset requires extension {name}, which is not supported")
 
 
-def _read(path: str, max_bytes: int) -> SplatAsset:
+def _load_document(path: str, max_bytes: int) -> tuple[pygltflib.GLTF2, _Reader]:
+    """Parse the container (GLB or JSON) and header; return the document and a bounded reader."""
     size = os.path.getsize(path)
     if size > max_bytes:
         raise FormatError(f"file is {size} bytes, larger than the limit of {max_bytes} bytes")
@@ -905,7 +906,11 @@ def _read(path: str, max_bytes: int) -> SplatAsset:
         raw_json = bytes(data)
     _, gltf = _parse_json(raw_json)
     _check_header(gltf)
-    reader = _Reader(path, gltf, glb_bin, max_bytes - len(data))
+    return gltf, _Reader(path, gltf, glb_bin, max_bytes - len(data))
+
+
+def _read(path: str, max_bytes: int) -> SplatAsset:
+    gltf, reader = _load_document(path, max_bytes)
     assets = _AssetReader(reader)
     node_names = _node_names(gltf)
     primitives: list[SplatPrimitive] = []
@@ -1002,19 +1007,8 @@ def read_gltf_triangles(path: str | os.PathLike, *,
     """
     spath = os.fspath(path)
     try:
-        size = os.path.getsize(spath)
-        if size > max_bytes:
-            raise FormatError(f"file is {size} bytes, larger than the limit of {max_bytes} bytes")
-        with open(spath, "rb") as handle:
-            data = memoryview(handle.read(max_bytes + 1))
-        glb_bin = None
-        if bytes(data[:4]) == _GLB_MAGIC or os.path.splitext(spath)[1].lower() == ".glb":
-            raw_json, glb_bin = _parse_glb(data)
-        else:
-            raw_json = bytes(data)
-        _, gltf = _parse_json(raw_json)
-        _check_header(gltf)
-        assets = _AssetReader(_Reader(spath, gltf, glb_bin, max_bytes - len(data)))
+        gltf, reader = _load_document(spath, max_bytes)
+        assets = _AssetReader(reader)
         vertices, faces, offset = [], [], 0
         for m, world in _mesh_instances(gltf):
             for p, prim in enumerate(assets.r.meshes[m].primitives or []):

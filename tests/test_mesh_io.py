@@ -1,0 +1,89 @@
+"""Reading anchor meshes: formats, node transforms, order preservation, bad input."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from gsverse_format.errors import FormatError
+from gsverse_format.examples import example_mesh, write_obj
+from gsverse_format.io.mesh import read_mesh
+
+
+def test_obj_keeps_vertex_and_face_order(tmp_path):
+    mesh = example_mesh(subdivisions=1)
+    write_obj(mesh, str(tmp_path / "m.obj"))
+    back = read_mesh(tmp_path / "m.obj")
+    assert np.array_equal(back.faces, mesh.faces)
+    assert np.allclose(back.vertices, mesh.vertices, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", ["trellis/AlexHe1234_TRELLIS_sample.glb", "meshes/Fox.glb",
+                                  "meshes/SimpleSkin.gltf", "meshes/trimesh_bunny_stanford_res2.ply"])
+def test_real_meshes_match_trimesh(shared_data, name):
+    ours = read_mesh(shared_data / name)
+    ref = trimesh.load(shared_data / name, force="mesh", process=False)
+    assert ours.face_count == len(ref.faces)
+    assert np.allclose(np.sort(ours.vertices, axis=0), np.sort(np.asarray(ref.vertices), axis=0), atol=1e-5)
+
+
+def _gltf_with_node(tmp_path, node: dict, uri: str | None = None):
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    data = v.tobytes()
+    import base64
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [dict(node, mesh=0)],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": 4}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": len(data)}],
+        "buffers": [{"byteLength": len(data),
+                     "uri": uri or "data:application/octet-stream;base64," + base64.b64encode(data).decode()}],
+    }
+    path = tmp_path / "m.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_gltf_node_transform_is_applied(tmp_path):
+    path = _gltf_with_node(tmp_path, {"translation": [1, 2, 3], "scale": [2, 2, 2]})
+    mesh = read_mesh(path)
+    assert np.allclose(mesh.vertices, [[1, 2, 3], [3, 2, 3], [1, 4, 3]])
+
+
+def test_gltf_mirroring_node_flips_winding(tmp_path):
+    path = _gltf_with_node(tmp_path, {"scale": [-1, 1, 1]})
+    mesh = read_mesh(path)
+    assert list(mesh.faces[0]) == [2, 1, 0]
+
+
+@pytest.mark.parametrize("uri", ["/etc/passwd", "../secret.bin", "http://example.com/x.bin",
+                                 "file:///etc/passwd"])
+def test_gltf_mesh_hostile_uris_are_refused(tmp_path, uri):
+    path = _gltf_with_node(tmp_path, {}, uri=uri)
+    with pytest.raises(FormatError) as err:
+        read_mesh(path)
+    assert "m.gltf" in str(err.value)
+
+
+@pytest.mark.parametrize("text,cause", [
+    ("v 0 0 0\nv 1 0 0\nf 1 2 9\n", ""),
+    ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN"),
+    ("v 0 0 0\n", ""),
+])
+def test_bad_obj(tmp_path, text, cause):
+    path = tmp_path / "bad.obj"
+    path.write_text(text)
+    with pytest.raises(FormatError) as err:
+        read_mesh(path)
+    assert "bad.obj" in str(err.value) and cause in str(err.value)
+
+
+def test_unknown_extension(tmp_path):
+    path = tmp_path / "m.fbx"
+    path.write_bytes(b"x")
+    with pytest.raises(FormatError):
+        read_mesh(path)
