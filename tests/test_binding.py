@@ -1,0 +1,66 @@
+"""Binding picks the true nearest non-degenerate triangle and reproduces the splats at rest."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gsverse_format.binding import bind_local
+from gsverse_format.errors import BindingError
+from gsverse_format.frames import degenerate_mask
+from gsverse_format.model import Anchoring, TriangleMesh
+from gsverse_format.nearest import closest_points_on_triangles
+from gsverse_format.remap import remap
+
+from helpers import bumpy_sphere, max_rel_cov_error, random_splats
+
+
+def _brute_force(points, mesh, allowed):
+    tri = mesh.triangles()[allowed]
+    ids = np.flatnonzero(allowed)
+    n, f = len(points), len(tri)
+    p = np.repeat(points, f, axis=0)
+    _, _, dist = closest_points_on_triangles(p, np.tile(tri[:, 0], (n, 1)), np.tile(tri[:, 1], (n, 1)),
+                                             np.tile(tri[:, 2], (n, 1)))
+    dist = dist.reshape(n, f)
+    return ids[np.argmin(dist, axis=1)], dist.min(axis=1)
+
+
+def test_binding_matches_brute_force_and_skips_degenerate_faces():
+    base = bumpy_sphere(1, seed=3)
+    v = base.vertices.astype(np.float64)
+    # Add degenerate faces right where splats are: collinear and collapsed triangles.
+    extra_v = np.array([[0, 0, 1.5], [0.1, 0, 1.5], [0.2, 0, 1.5], [0, 0, -1.5]])
+    verts = np.vstack([v, extra_v])
+    k = len(v)
+    faces = np.vstack([base.faces, [[k, k + 1, k + 2], [k + 3, k + 3, k + 3]]])
+    mesh = TriangleMesh(verts, faces)
+    splats = random_splats(300, seed=5, spread=1.6)
+    splats.means[:5] = [0.05, 0, 1.5]  # right on the degenerate segment
+    bound = bind_local(splats, mesh)
+    allowed = ~degenerate_mask(mesh.triangles())
+    assert not allowed[-1] and not allowed[-2]
+    face, dist = _brute_force(splats.means.astype(np.float64), mesh, allowed)
+    assert np.array_equal(bound.distance, dist)
+    assert np.array_equal(bound.anchors.face_index.astype(np.int64), face)
+    assert bound.degenerate_faces == 2
+    r = remap(Anchoring(mesh, bound.anchors))
+    assert np.max(np.abs(r.means - splats.means)) < 1e-5
+    assert max_rel_cov_error(r.covariances, splats.covariances()) < 2e-6
+
+
+def test_binding_refuses_meshes_without_usable_triangles():
+    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]])
+    with pytest.raises(BindingError, match="degenerate"):
+        bind_local(random_splats(3, seed=1), mesh)
+
+
+def test_binding_far_splats_and_edge_feet():
+    # A single triangle and splats beyond its edges: the foot point lies outside the triangle,
+    # yet remap at rest reproduces the splat exactly (barycentrics outside the simplex).
+    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+    splats = random_splats(50, seed=8, spread=3.0)
+    bound = bind_local(splats, mesh)
+    b = bound.anchors.barycentrics
+    assert np.any(b < 0) or np.any(b.sum(axis=1) > 1)
+    r = remap(Anchoring(mesh, bound.anchors))
+    assert np.max(np.abs(r.means - splats.means)) < 1e-5
