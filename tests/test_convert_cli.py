@@ -108,7 +108,7 @@ def test_ply_glb_ply_roundtrip_generated(tmp_path, sh_degree, binary, order):
     src = tmp_path / "in.ply"
     write_splat_ply(cloud, src, binary=binary, byte_order=order)
     original = read_splat_ply(src)
-    assert main([str(src), str(tmp_path / "mid.glb"), "-q"]) == 0
+    assert main([str(src), str(tmp_path / "mid.glb"), "--plain", "-q"]) == 0
     assert main([str(tmp_path / "mid.glb"), str(tmp_path / "out.ply"), "-q"]) == 0
     assert_ply_roundtrip(original, read_splat_ply(tmp_path / "out.ply"))
 
@@ -119,7 +119,7 @@ def test_ply_glb_ply_roundtrip_generated(tmp_path, sh_degree, binary, order):
 def test_ply_glb_ply_roundtrip_real_files(shared_data, tmp_path, name):
     src = shared_data / "3dgs" / name
     original = read_splat_ply(src)
-    assert main([str(src), str(tmp_path / "mid.glb"), "-q"]) == 0
+    assert main([str(src), str(tmp_path / "mid.glb"), "--plain", "-q"]) == 0
     assert main([str(tmp_path / "mid.glb"), str(tmp_path / "out.ply"), "-q"]) == 0
     assert_ply_roundtrip(original, read_splat_ply(tmp_path / "out.ply"))
 
@@ -127,7 +127,8 @@ def test_ply_glb_ply_roundtrip_real_files(shared_data, tmp_path, name):
 def test_sh_degree_truncation(tmp_path):
     cloud = random_splats(50, seed=1, sh_degree=3)
     write_splat_ply(cloud, tmp_path / "in.ply")
-    assert main([str(tmp_path / "in.ply"), str(tmp_path / "out.glb"), "--sh-degree", "1", "-q"]) == 0
+    assert main([str(tmp_path / "in.ply"), str(tmp_path / "out.glb"), "--sh-degree", "1", "--plain",
+                 "-q"]) == 0
     assert read_gltf(tmp_path / "out.glb").primitives[0].splats.sh_degree == 1
 
 
@@ -205,7 +206,7 @@ def test_nan_in_ply(tmp_path):
     body = data.index(b"end_header\n") + len(b"end_header\n")
     data[body + 4: body + 8] = np.array([np.nan], "<f4").tobytes()  # y of the first splat
     path.write_bytes(bytes(data))
-    proc = run_cli(str(path), str(tmp_path / "out.glb"))
+    proc = run_cli(str(path), str(tmp_path / "out.glb"), "--plain")
     _assert_clean_failure(proc, "nan.ply")
 
 

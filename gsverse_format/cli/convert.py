@@ -1,4 +1,4 @@
-"""``gsverse-convert``: 3DGS PLY / KHR glTF splats (+ an anchor mesh) -> anchored GLB.
+"""``gsverse-convert``: splats from 3DGS, SuGaR, TRELLIS, GaMeS or KHR glTF -> anchored GLB.
 
 Exit codes: 0 success, 1 bad input or failed conversion, 2 usage error. Errors are one line on
 stderr (``gsverse-convert: error: <file>: <cause>``), never a traceback.
@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 
 from .. import __version__
@@ -23,22 +24,46 @@ def build_parser() -> argparse.ArgumentParser:
         description="Convert Gaussian splats to a mesh-anchored glTF asset "
                     "(KHR_gaussian_splatting + GSVERSE_gaussian_splatting_mesh_anchor).",
         epilog="Example: gsverse-convert splats.ply anchored.glb --mesh mesh.obj")
-    p.add_argument("input", help="splats: 3DGS .ply, or KHR_gaussian_splatting .glb/.gltf")
+    p.add_argument("input", help="splats: a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, or a "
+                                 "GaMeS / GS-Verse output folder")
     p.add_argument("output", help="output .glb, .gltf, or .ply (plain splats, no anchoring)")
-    p.add_argument("--mesh", help="anchor triangle mesh (.obj, .ply, .stl, .off, .glb, .gltf) in the "
-                                  "same coordinate frame as the splats; each splat is bound to its "
-                                  "nearest triangle (local profile)")
-    p.add_argument("--deformation", choices=("affine", "rigid"), default="affine",
-                   help="how splats follow their triangle: affine (stretch and shear with it, "
-                        "default) or rigid (rotate, and scale uniformly with its area)")
-    p.add_argument("--sh-degree", type=int, choices=(0, 1, 2, 3),
-                   help="truncate spherical harmonics to this degree")
-    p.add_argument("--keep-order", action="store_true",
-                   help="keep the input splat order (default: sort anchored splats by face, "
-                        "which roughly halves per-frame remap time)")
-    p.add_argument("--no-frame-change", action="store_true",
-                   help="do not rotate 180 degrees about Z between the 3DGS PLY frame (+Y down) "
-                        "and the glTF frame (+Y up)")
+    src = p.add_argument_group("source")
+    src.add_argument("--from", dest="source", default="auto",
+                     choices=("auto", "3dgs", "sugar", "trellis", "games", "khr"),
+                     help="which tool made the input (default: detect where unambiguous)")
+    src.add_argument("--mesh", help="anchor triangle mesh (.obj, .ply, .stl, .off, .glb, .gltf) in the "
+                                    "same frame as the splats; without it a 3DGS PLY gets a mesh "
+                                    "reconstructed from its splats")
+    src.add_argument("--pt", dest="pt_path", help="PyTorch checkpoint: SuGaR refined .pt or GaMeS "
+                                                  "model_params.pt (needs PyTorch)")
+    src.add_argument("--k", type=int, help="splats per face (SuGaR, GaMeS), overriding detection")
+    src.add_argument("--legacy-trellis-frame", action="store_true",
+                     help="TRELLIS PLY saved before 2024-12-18 (no export rotation)")
+    src.add_argument("--no-frame-change", action="store_true",
+                     help="keep coordinates as they are (no rotation from the source's frame, "
+                          "e.g. the 3DGS +Y-down frame, into glTF's +Y-up frame)")
+    anc = p.add_argument_group("anchoring (only what the scene requires)")
+    anc.add_argument("--deformation", choices=("affine", "rigid"), default="affine",
+                     help="how local-profile splats follow their triangle: affine (stretch and "
+                          "shear with it, default) or rigid (rotate, and scale uniformly)")
+    anc.add_argument("--max-distance", type=float,
+                     help="splats farther than this from the mesh are not anchored: they stay "
+                          "plain static splats (relative to the mesh's bounding-box diagonal "
+                          "unless --absolute-distance)")
+    anc.add_argument("--absolute-distance", action="store_true",
+                     help="--max-distance is in scene units")
+    anc.add_argument("--drop-unanchored", action="store_true",
+                     help="drop the splats beyond --max-distance instead of keeping them static")
+    anc.add_argument("--faces", type=int,
+                     help="decimate the anchor mesh to about this many faces (the resolution "
+                          "the physics needs), or the size of a reconstructed mesh")
+    anc.add_argument("--sh-degree", type=int, choices=(0, 1, 2, 3),
+                     help="truncate spherical harmonics to this degree")
+    anc.add_argument("--keep-order", action="store_true",
+                     help="keep the input splat order (default: sort anchored splats by face, "
+                          "which roughly halves per-frame remap time)")
+    anc.add_argument("--plain", action="store_true",
+                     help="format conversion only: write plain KHR splats without anchoring")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
@@ -48,9 +73,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    options = ConvertOptions(mesh=args.mesh, deformation=args.deformation,
+    options = ConvertOptions(mesh=args.mesh, source=args.source, deformation=args.deformation,
                              frame_change=not args.no_frame_change, keep_order=args.keep_order,
-                             sh_degree=args.sh_degree)
+                             sh_degree=args.sh_degree, max_distance=args.max_distance,
+                             absolute_distance=args.absolute_distance,
+                             drop_unanchored=args.drop_unanchored, faces=args.faces,
+                             pt_path=args.pt_path, k=args.k,
+                             legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
     try:
         summary = convert(args.input, args.output, options, progress)
@@ -66,6 +95,14 @@ def main(argv: list[str] | None = None) -> int:
         progress.close()
         print(f"{PROG}: error: {args.input}: out of memory", file=sys.stderr)
         return 1
+    except Exception as exc:  # a bug, not bad input: still one line; GSVERSE_DEBUG=1 shows it all
+        progress.close()
+        if os.environ.get("GSVERSE_DEBUG"):
+            raise
+        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} "
+              f"(set GSVERSE_DEBUG=1 for a traceback, and please report it)".replace("\n", " "),
+              file=sys.stderr)
+        return 70
     except KeyboardInterrupt:
         progress.close()
         print(f"{PROG}: interrupted; no output written", file=sys.stderr)
