@@ -1,0 +1,85 @@
+"""Only what the scene requires: --max-distance, --drop-unanchored, summaries, source detection."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from gsverse_format.cli.convert import main
+from gsverse_format.convert import ConvertOptions, convert
+from gsverse_format.converters import detect_source
+from gsverse_format.examples import example_mesh, example_splats, write_obj
+from gsverse_format.io.gltf import read_gltf
+from gsverse_format.io.ply import write_splat_ply
+from gsverse_format.model import SplatCloud
+
+from helpers import random_splats
+
+
+@pytest.fixture()
+def scene(tmp_path):
+    """Splats on a mesh plus a far 'background' shell of splats; no frame change needed."""
+    mesh = example_mesh(subdivisions=2)
+    near = example_splats(mesh, count=500, seed=3)
+    far = random_splats(200, seed=4, sh_degree=1, spread=1.0)
+    far.means = (far.means / np.linalg.norm(far.means, axis=1, keepdims=True) * 8.0).astype(np.float32)
+    cloud = SplatCloud.concatenate([near, far])
+    write_splat_ply(cloud, tmp_path / "scene.ply")
+    write_obj(mesh, str(tmp_path / "mesh.obj"))
+    return tmp_path, len(near), len(far)
+
+
+def test_max_distance_keeps_far_splats_static(scene):
+    folder, n_near, n_far = scene
+    out = folder / "out.glb"
+    summary = convert(str(folder / "scene.ply"), str(out),
+                      ConvertOptions(mesh=str(folder / "mesh.obj"), max_distance=0.1))
+    assert (summary.anchored, summary.static, summary.dropped) == (n_near, n_far, 0)
+    asset = read_gltf(out)
+    assert [len(p.splats) for p in asset.anchored] == [n_near]
+    assert [len(p.splats) for p in asset.static] == [n_far]
+    assert summary.max_distance == pytest.approx(0.1 * summary.distance["mesh_diagonal"])
+
+
+def test_drop_unanchored_and_absolute_distance(scene):
+    folder, n_near, n_far = scene
+    out = folder / "out.glb"
+    summary = convert(str(folder / "scene.ply"), str(out),
+                      ConvertOptions(mesh=str(folder / "mesh.obj"), max_distance=1.0,
+                                     absolute_distance=True, drop_unanchored=True))
+    assert (summary.anchored, summary.static, summary.dropped) == (n_near, 0, n_far)
+    assert summary.max_distance == 1.0
+    asset = read_gltf(out)
+    assert len(asset.primitives) == 1 and asset.primitives[0].anchoring is not None
+
+
+def test_json_summary_reports_counts(scene, capsys):
+    folder, n_near, n_far = scene
+    code = main([str(folder / "scene.ply"), str(folder / "o.glb"), "--mesh", str(folder / "mesh.obj"),
+                 "--max-distance", "0.1", "--json"])
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["anchored"] == n_near and summary["static"] == n_far
+    assert summary["source"] == "3dgs" and summary["profile"] == "local"
+    for key in ("p50", "p95", "p99", "max"):
+        assert key in summary["distance"]
+    assert summary["seconds"] > 0
+
+
+def test_drop_unanchored_needs_max_distance(scene, capsys):
+    folder, *_ = scene
+    assert main([str(folder / "scene.ply"), str(folder / "o.glb"), "--mesh", str(folder / "mesh.obj"),
+                 "--drop-unanchored"]) == 2
+    assert "--max-distance" in capsys.readouterr().err
+
+
+def test_detect_source(tmp_path, scene):
+    folder, *_ = scene
+    assert detect_source(str(folder / "scene.ply"), str(folder / "mesh.obj"))[0] == "3dgs"
+    assert detect_source(str(folder), None)[0] == "games"
+    (folder / "model_params.json").write_text("{}")
+    assert detect_source(str(folder / "scene.ply"), None)[0] == "games"
+    glb = tmp_path / "x.glb"
+    glb.write_bytes(b"")
+    assert detect_source(str(glb), None)[0] == "khr"
