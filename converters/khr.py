@@ -1,0 +1,84 @@
+"""``KHR_gaussian_splatting`` glTF (.glb/.gltf) as the splat input.
+
+Every ``KHR_gaussian_splatting`` primitive of the file is read (:func:`gsverse_format.io.gltf.
+read_gltf`); positions are in the asset's local space, which is already the glTF frame, so no
+frame change is applied (``frame_change`` has no effect here).
+
+* With ``--mesh``: the splats of all primitives are concatenated in file order (SH padded to
+  the highest degree) and returned with the mesh (:func:`gsverse_format.io.mesh.read_mesh`,
+  read as is: it must be in the same frame as the splats). Anchoring already present in the
+  file is ignored — the pipeline binds every splat to its nearest triangle of the new mesh.
+* Without a mesh the file must already be anchored. The first anchored primitive's anchor
+  mesh and anchors are returned, together with every later primitive anchored to the *same*
+  anchor mesh with the same profile (and, for ``local``, the same deformation law), splats and
+  anchors concatenated in file order. Other primitives (plain splats, or anchored to another
+  mesh) cannot share one anchor set and are left out; a note says how many splats that is and
+  that ``--mesh`` rebinds everything to one mesh instead.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FormatError
+from ..io.gltf import read_gltf
+from ..io.mesh import read_mesh
+from ..model import GamesAnchors, LocalAnchors, SplatCloud, SplatPrimitive
+from .base import SourceOptions, SourceResult
+
+__all__ = ["load"]
+
+
+def _compatible(a, b) -> bool:
+    if type(a) is not type(b):
+        return False
+    return not isinstance(a, LocalAnchors) or a.deformation == b.deformation
+
+
+def _concat_anchors(items: list):
+    first = items[0]
+    if isinstance(first, LocalAnchors):
+        return LocalAnchors(np.concatenate([a.face_index for a in items]),
+                            np.concatenate([a.barycentrics for a in items]),
+                            np.concatenate([a.normal_offset for a in items]),
+                            np.concatenate([a.local_rotation for a in items]),
+                            np.concatenate([a.local_scale for a in items]), first.deformation)
+    return GamesAnchors(np.concatenate([a.face_index for a in items]),
+                        np.concatenate([a.barycentrics for a in items]),
+                        np.concatenate([a.rho for a in items]))
+
+
+def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
+    """Splats of a KHR glTF, with ``mesh_path`` or with the file's own anchoring."""
+    asset = read_gltf(input_path)
+    prims: list[SplatPrimitive] = asset.primitives
+    if not prims:
+        raise FormatError("no KHR_gaussian_splatting primitive in the file", input_path)
+    notes: list[str] = []
+    total = sum(len(p.splats) for p in prims)
+    if mesh_path is not None:
+        splats = SplatCloud.concatenate([p.splats for p in prims])
+        mesh = read_mesh(mesh_path)
+        if len(prims) > 1:
+            notes.append(f"{len(prims)} splat primitives joined ({total} splats)")
+        if asset.anchored:
+            notes.append("the file's own anchoring is ignored: splats are bound to --mesh")
+        return SourceResult(splats, mesh, None, notes, {"primitives": len(prims)})
+
+    anchored = asset.anchored
+    if not anchored:
+        raise FormatError("the file has no anchored primitive and no mesh was given: pass the "
+                          "anchor mesh with --mesh", input_path)
+    first = anchored[0].anchoring
+    chosen = [p for p in anchored if p.anchoring.mesh is first.mesh
+              and _compatible(p.anchoring.anchors, first.anchors)]
+    splats = SplatCloud.concatenate([p.splats for p in chosen])
+    anchors = _concat_anchors([p.anchoring.anchors for p in chosen])
+    left = total - len(splats)
+    if left:
+        notes.append(f"{left} splats of {len(prims) - len(chosen)} primitive(s) not anchored to "
+                     f"the first anchor mesh were left out; pass --mesh to bind all {total} "
+                     "splats to one mesh")
+    notes.append(f"kept the file's {anchors.profile} anchoring of {len(splats)} splats "
+                 f"({len(chosen)} primitive(s))")
+    check = {"primitives": len(prims), "primitives_used": len(chosen), "splats_left_out": left}
+    return SourceResult(splats, first.mesh, anchors, notes, check)
