@@ -20,7 +20,7 @@ from .binding import bind_local
 from .converters import detect_source, loader
 from .converters.base import SourceOptions, SourceResult
 from .errors import GsverseError, UsageError
-from .io.registry import SPLAT_OUTPUTS, read_asset, write_asset
+from .io.registry import SPLAT_OUTPUTS, USD_SUFFIXES, read_asset, write_asset
 from .model import Anchoring, LocalAnchors, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
 from .nearest import closest_points_on_triangles
 from .progress import Progress
@@ -32,7 +32,8 @@ class ConvertOptions:
 
     ``max_distance`` is relative to the anchor mesh's bounding-box diagonal unless
     ``absolute_distance``; ``None`` anchors every splat. ``plain`` converts formats only
-    (no anchoring is added or kept).
+    (no anchoring is added or kept). ``bake_poses`` names a poses file
+    (:func:`gsverse_format.io.usd.load_poses`) baked into USD time samples (USD output only).
     """
 
     mesh: str | None = None
@@ -49,6 +50,7 @@ class ConvertOptions:
     k: int | None = None
     legacy_trellis_frame: bool = False
     plain: bool = False
+    bake_poses: str | None = None
 
 
 @dataclass
@@ -119,7 +121,7 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
         raise UsageError(f"--faces must be at least 4, not {options.faces}")
     if not os.path.exists(input_path):
         raise UsageError("file not found", input_path)
-    for p in (options.mesh, options.pt_path):
+    for p in (options.mesh, options.pt_path, options.bake_poses):
         if p is not None and not os.path.isfile(p):
             raise UsageError("file not found", p)
     folder = os.path.dirname(os.path.abspath(output_path))
@@ -129,6 +131,9 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
     if ext not in SPLAT_OUTPUTS:
         raise UsageError(f"unsupported output format {ext or '(no extension)'}; "
                          f"use one of {', '.join(SPLAT_OUTPUTS)}", output_path)
+    if options.bake_poses is not None and ext not in USD_SUFFIXES:
+        raise UsageError(f"--bake-poses needs a USD output ({', '.join(USD_SUFFIXES)})",
+                         output_path)
 
 
 def convert(input_path: str, output_path: str, options: ConvertOptions | None = None,
@@ -140,19 +145,21 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
     input_path, output_path = os.fspath(input_path), os.fspath(output_path)
     summary = ConvertSummary(input_path, output_path)
     _check_options(input_path, output_path, options)
-    protect = tuple(p for p in (input_path, options.mesh, options.pt_path) if p is not None)
+    protect = tuple(p for p in (input_path, options.mesh, options.pt_path, options.bake_poses)
+                    if p is not None)
 
     in_ext = os.path.splitext(input_path)[1].lower()
     out_ext = os.path.splitext(output_path)[1].lower()
     format_only = options.plain or (options.mesh is None and options.source in ("auto", "khr")
-                                    and (in_ext in (".glb", ".gltf") or out_ext == ".ply"))
+                                    and (in_ext in (".glb", ".gltf") + USD_SUFFIXES
+                                         or out_ext == ".ply"))
     if format_only:
-        # Format conversion only (PLY <-> GLB, GLB -> GLB, PLY -> PLY): no binding involved;
-        # anchoring already present in a glTF input is kept.
+        # Format conversion only (PLY <-> GLB <-> USD, GLB -> GLB, PLY -> PLY): no binding
+        # involved; anchoring already present in a glTF or USD input is kept.
         if options.mesh is not None:
             raise UsageError("--plain writes splats without anchoring: drop --mesh or --plain")
         progress.stage(f"reading {os.path.basename(input_path)}")
-        asset = read_asset(input_path, frame_change=options.frame_change)
+        asset = _read_noting_usd_warnings(input_path, options, summary)
         if options.sh_degree is not None:
             for prim in asset.primitives:
                 if prim.splats.sh_degree > options.sh_degree:
@@ -160,7 +167,8 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
         if options.plain:
             asset = SplatAsset([SplatPrimitive(p.splats, None, p.name) for p in asset.primitives],
                                asset.generator)
-        summary.source = "khr" if in_ext in (".glb", ".gltf") else "3dgs"
+        summary.source = ("khr" if in_ext in (".glb", ".gltf") else
+                          "usd" if in_ext in USD_SUFFIXES else "3dgs")
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
     source = options.source
@@ -180,6 +188,24 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
 
+def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
+                              summary: ConvertSummary) -> SplatAsset:
+    """``read_asset``; what the USD reader replaced in foreign data goes to the summary notes."""
+    import warnings
+
+    from .io.usd import UsdReadWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UsdReadWarning)
+        asset = read_asset(input_path, frame_change=options.frame_change)
+    for w in caught:
+        if issubclass(w.category, UsdReadWarning):
+            summary.notes.append(str(w.message))
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return asset
+
+
 def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions, protect: tuple,
             summary: ConvertSummary, progress: Progress, start: float) -> ConvertSummary:
     summary.splats = asset.splat_count()
@@ -193,8 +219,15 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions, protec
         summary.mesh_faces = anchoring.mesh.face_count
     if os.path.splitext(output_path)[1].lower() == ".ply" and asset.anchored:
         summary.notes.append("PLY output stores plain splats: the anchoring is not written")
+    poses = None
+    if options.bake_poses is not None:
+        from .io.usd import load_poses
+
+        poses = load_poses(options.bake_poses)
+        summary.notes.append(f"baked {len(poses.times)} anchor-mesh poses into USD time samples")
     progress.stage(f"writing {os.path.basename(output_path)}")
-    write_asset(asset, output_path, frame_change=options.frame_change, protect=protect)
+    write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
+                bake_poses=poses)
     progress.close()
     summary.output_bytes = os.path.getsize(output_path)
     summary.seconds = time.perf_counter() - start

@@ -42,10 +42,18 @@ Ties
     (duplicated triangles therefore resolve to their first copy). The result does not depend on
     ``chunk``.
 
+Implementations
+    This module is the vectorised numpy reference. When numba is importable,
+    :func:`nearest_triangles` runs the compiled search of :mod:`gsverse_format.nearest_fast`
+    instead (a BVH traversed per point on all cores), which returns the identical result: the
+    same kernel arithmetic, the same certified margin and the same tie rule. ``method="numpy"``
+    or the environment variable ``GSVERSE_NO_NUMBA=1`` selects this reference.
+
 Units are those of the input coordinates; all arithmetic is float64.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Callable
 
@@ -512,17 +520,10 @@ def _search_chunk(tree: _Tree, Q: np.ndarray) -> _Best:
     return best
 
 
-def nearest_triangles(points, vertices, faces, *, exclude: np.ndarray | None = None,
-                      chunk: int = 65536,
-                      progress: Callable[[int, int], None] | None = None) -> NearestResult:
-    """Exact nearest triangle of ``(vertices, faces)`` for every point of ``points``.
-
-    ``points`` (N, 3), ``vertices`` (V, 3) and ``faces`` (F, 3) integer indices; ``exclude``
-    an optional (F,) boolean mask of faces never to return (for example degenerate ones).
-    Queries run ``chunk`` points at a time; ``progress(done, total)`` is called after each.
-    Raises ``ValueError`` on malformed input or when no face is selectable.
-    See the module docstring for the exactness guarantee and the tie rule.
-    """
+def _prepare(points, vertices, faces, exclude, chunk):
+    """Validated inputs: ``(P (N, 3) float64, V (V, 3) float64, F (F, 3) int64, idx)`` with
+    ``idx`` the indices of the selectable faces. Raises ``ValueError`` (see
+    :func:`nearest_triangles`)."""
     P = np.asarray(points, dtype=np.float64)
     V = np.asarray(vertices, dtype=np.float64)
     Fc = np.asarray(faces)
@@ -532,7 +533,7 @@ def nearest_triangles(points, vertices, faces, *, exclude: np.ndarray | None = N
         raise ValueError(f"vertices must have shape (V, 3), got {V.shape}")
     if Fc.ndim != 2 or Fc.shape[1] != 3 or (Fc.size and not np.issubdtype(Fc.dtype, np.integer)):
         raise ValueError(f"faces must be an integer array of shape (F, 3), got {Fc.shape} {Fc.dtype}")
-    Fc = Fc.astype(np.int64)
+    Fc = Fc.astype(np.int64, copy=False)
     if Fc.size and (Fc.min() < 0 or Fc.max() >= V.shape[0]):
         raise ValueError("faces reference vertices out of range")
     if chunk < 1:
@@ -548,7 +549,57 @@ def nearest_triangles(points, vertices, faces, *, exclude: np.ndarray | None = N
         raise ValueError("no selectable faces: the mesh is empty or every face is excluded")
     if not np.all(np.isfinite(P)):
         raise ValueError("points must be finite")
+    if P.shape[0] and not np.all(np.isfinite(V)) and not np.all(np.isfinite(V[Fc[idx]])):
+        raise ValueError("mesh vertices used by selectable faces must be finite")
+    return P, V, Fc, idx
+
+
+def _use_compiled(method: str) -> bool:
+    """Whether ``method`` selects the compiled search (see :func:`nearest_triangles`)."""
+    if method == "numpy":
+        return False
+    if method == "numba":
+        try:
+            from . import nearest_fast  # noqa: F401
+        except ImportError as exc:
+            raise ImportError(f"method='numba' needs numba (pip install 'numba>=0.60'): {exc}") from exc
+        return True
+    if method != "auto":
+        raise ValueError(f"method must be 'auto', 'numba' or 'numpy', got {method!r}")
+    if os.environ.get("GSVERSE_NO_NUMBA", "").strip() not in ("", "0"):
+        return False
+    try:
+        from . import nearest_fast  # noqa: F401
+    except Exception:           # numba missing or unusable: the reference below is exact too
+        return False
+    return True
+
+
+def nearest_triangles(points, vertices, faces, *, exclude: np.ndarray | None = None,
+                      chunk: int = 65536,
+                      progress: Callable[[int, int], None] | None = None,
+                      method: str = "auto") -> NearestResult:
+    """Exact nearest triangle of ``(vertices, faces)`` for every point of ``points``.
+
+    ``points`` (N, 3), ``vertices`` (V, 3) and ``faces`` (F, 3) integer indices; ``exclude``
+    an optional (F,) boolean mask of faces never to return (for example degenerate ones).
+    Queries run ``chunk`` points at a time; ``progress(done, total)`` is called after each.
+    Raises ``ValueError`` on malformed input or when no face is selectable.
+    See the module docstring for the exactness guarantee and the tie rule.
+
+    ``method`` picks the implementation; both return identical results. ``"numba"`` is the
+    compiled, multi-threaded search of :mod:`gsverse_format.nearest_fast`, ``"numpy"`` the
+    vectorised reference in this module, and ``"auto"`` (default) uses numba when it can be
+    imported, unless the environment variable ``GSVERSE_NO_NUMBA`` is set to a value other than
+    ``0``.
+    """
+    compiled = _use_compiled(method)
+    P, V, Fc, idx = _prepare(points, vertices, faces, exclude, chunk)
     n = P.shape[0]
+    if compiled and n:
+        from .nearest_fast import build_tree, query_tree
+
+        return query_tree(build_tree(V, Fc, idx), P, chunk=chunk, progress=progress)
     result = NearestResult(np.zeros(n, np.int64), np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3)))
     if n == 0:
         if progress is not None:

@@ -24,9 +24,11 @@ def build_parser() -> argparse.ArgumentParser:
         description="Convert Gaussian splats to a mesh-anchored glTF asset "
                     "(KHR_gaussian_splatting + GSVERSE_gaussian_splatting_mesh_anchor).",
         epilog="Example: gsverse-convert splats.ply anchored.glb --mesh mesh.obj")
-    p.add_argument("input", help="splats: a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, or a "
-                                 "GaMeS / GS-Verse output folder")
-    p.add_argument("output", help="output .glb, .gltf, or .ply (plain splats, no anchoring)")
+    p.add_argument("input", help="splats: a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, a USD "
+                                 "file (.usda/.usdc/.usd/.usdz), or a GaMeS / GS-Verse output "
+                                 "folder")
+    p.add_argument("output", help="output .glb, .gltf, .usda, .usdc, .usd, .usdz (USD needs "
+                                  "usd-core), or .ply (plain splats, no anchoring)")
     src = p.add_argument_group("source")
     src.add_argument("--from", dest="source", default="auto",
                      choices=("auto", "3dgs", "sugar", "trellis", "games", "khr"),
@@ -64,6 +66,14 @@ def build_parser() -> argparse.ArgumentParser:
                           "which roughly halves per-frame remap time)")
     anc.add_argument("--plain", action="store_true",
                      help="format conversion only: write plain KHR splats without anchoring")
+    usd = p.add_argument_group("USD output")
+    usd.add_argument("--bake-poses", metavar="FILE",
+                     help="also store the splats remapped onto these anchor-mesh poses as USD "
+                          "time samples, for USD renderers that do not know the anchors: an .npz "
+                          "with vertices (P, V, 3) and times (P,) (USD time codes; optional "
+                          "time_codes_per_second, default 24), or a JSON list of "
+                          "{\"time\": t, \"vertices\": [[x, y, z], ...]}; vertices in the frame "
+                          "and vertex order of the written anchor mesh (see spec/usd.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no summary")
     p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
@@ -79,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
                              absolute_distance=args.absolute_distance,
                              drop_unanchored=args.drop_unanchored, faces=args.faces,
                              pt_path=args.pt_path, k=args.k,
-                             legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain)
+                             legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
+                             bake_poses=args.bake_poses)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
     try:
         summary = convert(args.input, args.output, options, progress)

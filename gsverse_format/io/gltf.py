@@ -35,6 +35,7 @@ import re
 import struct
 import urllib.parse
 import warnings
+from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
@@ -47,7 +48,8 @@ from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatClo
                      SplatPrimitive, TriangleMesh)
 
 __all__ = ["write_gltf", "read_gltf", "asset_to_gltf", "gltf_to_bytes", "KHR", "ANCHOR",
-           "DEFAULT_MAX_BYTES"]
+           "DEFAULT_MAX_BYTES", "GltfFormatError", "AccessorLayout", "Document", "parse_glb",
+           "parse_json", "load_document", "header_problems", "pointer_token"]
 
 KHR = "KHR_gaussian_splatting"
 ANCHOR = EXTENSION_NAME
@@ -66,11 +68,39 @@ _DTYPES = {BYTE: np.dtype("<i1"), UNSIGNED_BYTE: np.dtype("<u1"), SHORT: np.dtyp
 _CTYPE_NAMES = {BYTE: "BYTE", UNSIGNED_BYTE: "UNSIGNED_BYTE", SHORT: "SHORT",
                 UNSIGNED_SHORT: "UNSIGNED_SHORT", UNSIGNED_INT: "UNSIGNED_INT", FLOAT: "FLOAT"}
 _NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+#: Matrix accessor types (rows = columns); only their bounds are checked, splats never use them.
+_MAT_ROWS = {"MAT2": 2, "MAT3": 3, "MAT4": 4}
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 _GLB_MAGIC = b"glTF"
 _CHUNK_JSON = 0x4E4F534A
 _CHUNK_BIN = 0x004E4942
+
+#: Accessor formats of ``KHR_gaussian_splatting`` attributes: semantic -> (accessor types,
+#: allowed (componentType, normalized) pairs; normalized ``None`` = either). ``SH`` stands for
+#: every ``SH_DEGREE_l_COEF_n``. ``POSITION`` is FLOAT unless ``KHR_mesh_quantization`` is used.
+KHR_ATTRIBUTE_FORMATS: dict[str, tuple[tuple[str, ...], tuple[tuple[int, bool | None], ...]]] = {
+    "POSITION": (("VEC3",), ((FLOAT, False),)),
+    f"{KHR}:ROTATION": (("VEC4",), ((FLOAT, False), (BYTE, True), (SHORT, True))),
+    f"{KHR}:SCALE": (("VEC3",), ((FLOAT, False), (UNSIGNED_BYTE, None), (UNSIGNED_SHORT, None))),
+    f"{KHR}:OPACITY": (("SCALAR",), ((FLOAT, False), (UNSIGNED_BYTE, True),
+                                     (UNSIGNED_SHORT, True))),
+    "SH": (("VEC3",), ((FLOAT, False),)),
+}
+#: ``POSITION`` formats added by ``KHR_mesh_quantization``.
+QUANTIZED_POSITION_FORMATS = ((BYTE, None), (UNSIGNED_BYTE, None), (SHORT, None),
+                              (UNSIGNED_SHORT, None))
+
+#: Accessor formats of the anchor extension's properties (spec §Accessor component types).
+ANCHOR_ACCESSOR_FORMATS: dict[str, tuple[tuple[str, ...], tuple[tuple[int, bool | None], ...]]] = {
+    "faceIndex": (("SCALAR",), ((UNSIGNED_BYTE, False), (UNSIGNED_SHORT, False),
+                                (UNSIGNED_INT, False))),
+    "barycentrics": (("VEC2",), ((FLOAT, False), (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, True))),
+    "normalOffset": (("SCALAR",), ((FLOAT, False),)),
+    "localRotation": (("VEC4",), ((FLOAT, False), (BYTE, True), (SHORT, True))),
+    "localScale": (("VEC3",), ((FLOAT, False), (UNSIGNED_BYTE, None), (UNSIGNED_SHORT, None))),
+    "rho": (("SCALAR",), ((FLOAT, False),)),
+}
 
 #: Component-type choices for ``quantize=``: property -> {option: (componentType, scale)}.
 _QUANTIZE = {
@@ -357,53 +387,108 @@ def write_gltf(asset: SplatAsset, path: str | os.PathLike, *,
 # ----------------------------------------------------------------------------------------
 
 
+class GltfFormatError(FormatError):
+    """A :class:`FormatError` of the container and bounds checks that also carries the stable
+    issue ``code`` of ``spec/validation.md`` and where the problem is: a JSON ``pointer``
+    (RFC 6901) or a byte ``offset`` into a GLB file. ``gsverse-validate`` reports these; the
+    reader only shows the one-line cause."""
+
+    def __init__(self, cause: str, path: str | os.PathLike | None = None, *,
+                 code: str | None = None, pointer: str | None = None,
+                 offset: int | None = None) -> None:
+        super().__init__(cause, path)
+        self.code = code
+        self.pointer = pointer
+        self.offset = offset
+
+    def with_path(self, path: str | os.PathLike) -> "GltfFormatError":
+        if self.path is None:
+            return GltfFormatError(self.cause, path, code=self.code, pointer=self.pointer,
+                                   offset=self.offset)
+        return self
+
+
+def _fail(code: str, cause: str, pointer: str | None = None,
+          offset: int | None = None) -> GltfFormatError:
+    return GltfFormatError(cause, code=code, pointer=pointer, offset=offset)
+
+
 def _is_int(value: Any) -> bool:
     return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
-def _int(value: Any, what: str, *, minimum: int = 0, default: int | None = None) -> int:
+def _int(value: Any, what: str, *, minimum: int = 0, default: int | None = None,
+         pointer: str | None = None, code: str = "GLTF_SCHEMA_VIOLATION") -> int:
     if value is None and default is not None:
         return default
     if not _is_int(value) or value < minimum:
-        raise FormatError(f"{what} must be an integer >= {minimum}, got {value!r}")
+        raise _fail(code, f"{what} must be an integer >= {minimum}, got {value!r}", pointer)
     return int(value)
 
 
-def _index(value: Any, size: int, what: str) -> int:
+def _index(value: Any, size: int, what: str, pointer: str | None = None) -> int:
     if not _is_int(value):
-        raise FormatError(f"{what} must be an index, got {value!r}")
+        raise _fail("UNRESOLVED_REFERENCE", f"{what} must be an index, got {value!r}", pointer)
     if not 0 <= value < size:
-        raise FormatError(f"{what} {value} out of range (there are {size})")
+        raise _fail("UNRESOLVED_REFERENCE", f"{what} {value} out of range (there are {size})",
+                    pointer)
     return int(value)
 
 
-def _parse_glb(data: memoryview) -> tuple[bytes, memoryview | None]:
-    """(JSON chunk, BIN chunk or None) of a GLB container, every length checked."""
+def parse_glb(data: memoryview | bytes,
+              issues: list[tuple[str, str, int]] | None = None) -> tuple[bytes, memoryview | None]:
+    """(JSON chunk, BIN chunk or None) of a GLB container, every length checked.
+
+    Problems that make the container unreadable raise :class:`GltfFormatError`. Problems the
+    reader can step over (a chunk length that is not a multiple of 4, an unknown chunk type, a
+    JSON or BIN chunk out of place) are appended to ``issues`` as ``(code, message, byte
+    offset)`` when a list is given, and ignored otherwise.
+    """
+    data = memoryview(data)
     if len(data) < 12:
-        raise FormatError(f"truncated GLB: {len(data)} bytes, shorter than the 12-byte header")
+        raise _fail("GLB_TRUNCATED",
+                    f"truncated GLB: {len(data)} bytes, shorter than the 12-byte header", offset=0)
     magic, version, length = struct.unpack_from("<4sII", data, 0)
     if magic != _GLB_MAGIC:
-        raise FormatError(f"not a GLB file: bad magic {bytes(magic)!r} (expected b'glTF')")
+        raise _fail("GLB_BAD_MAGIC",
+                    f"not a GLB file: bad magic {bytes(magic)!r} (expected b'glTF')", offset=0)
     if version != 2:
-        raise FormatError(f"unsupported GLB container version {version} (only 2)")
+        raise _fail("GLB_UNSUPPORTED_VERSION",
+                    f"unsupported GLB container version {version} (only 2)", offset=4)
     if length > len(data):
-        raise FormatError(f"truncated GLB: header says {length} bytes, file has {len(data)}")
+        raise _fail("GLB_TRUNCATED",
+                    f"truncated GLB: header says {length} bytes, file has {len(data)}", offset=8)
     if length < len(data):
-        raise FormatError(f"GLB length field {length} does not match the file size {len(data)}")
+        raise _fail("GLB_LENGTH_MISMATCH",
+                    f"GLB length field {length} does not match the file size {len(data)}",
+                    offset=8)
     chunks: list[tuple[int, memoryview]] = []
     pos = 12
     while pos < length:
         if pos + 8 > length:
-            raise FormatError(f"truncated GLB: chunk header at byte {pos} runs past the end")
+            raise _fail("GLB_TRUNCATED",
+                        f"truncated GLB: chunk header at byte {pos} runs past the end", offset=pos)
         size, kind = struct.unpack_from("<II", data, pos)
+        if size > length - pos - 8:
+            raise _fail("GLB_CHUNK_TOO_LONG", f"GLB chunk {len(chunks)} is {size} bytes long but "
+                        f"only {length - pos - 8} bytes follow it", offset=pos)
+        if issues is not None:
+            if size % 4:
+                issues.append(("GLB_CHUNK_UNALIGNED", f"GLB chunk {len(chunks)} is {size} bytes "
+                               f"long, not a multiple of 4 (chunks must be padded)", pos))
+            if kind not in (_CHUNK_JSON, _CHUNK_BIN):
+                issues.append(("GLB_UNKNOWN_CHUNK", f"GLB chunk {len(chunks)} has unknown type "
+                               f"0x{kind:08X}; it is ignored", pos + 4))
+            elif len(chunks) > 0 and (kind == _CHUNK_JSON or len(chunks) > 1):
+                name = "JSON" if kind == _CHUNK_JSON else "BIN"
+                issues.append(("GLB_UNEXPECTED_CHUNK", f"GLB chunk {len(chunks)} is a {name} "
+                               f"chunk; only the first chunk may be JSON and only the second "
+                               f"BIN; it is ignored", pos + 4))
         pos += 8
-        if size > length - pos:
-            raise FormatError(f"GLB chunk {len(chunks)} is {size} bytes long but only "
-                              f"{length - pos} bytes follow it")
         chunks.append((kind, data[pos:pos + size]))
         pos += size
     if not chunks or chunks[0][0] != _CHUNK_JSON:
-        raise FormatError("GLB does not start with a JSON chunk")
+        raise _fail("GLB_FIRST_CHUNK_NOT_JSON", "GLB does not start with a JSON chunk", offset=12)
     binary = chunks[1][1] if len(chunks) > 1 and chunks[1][0] == _CHUNK_BIN else None
     return bytes(chunks[0][1]), binary
 
@@ -416,78 +501,118 @@ _INT_FIELDS = {
 }
 
 
+def pointer_token(key: Any) -> str:
+    """One RFC 6901 reference token (``~`` -> ``~0``, ``/`` -> ``~1``)."""
+    return str(key).replace("~", "~0").replace("/", "~1")
+
+
 def _check_types(doc: dict) -> None:
     """Types of the JSON members the reader relies on (the dataclass decoder coerces silently,
     e.g. 2.5 -> 2, so they are checked on the raw JSON)."""
-    def obj_list(value: Any, where: str) -> list:
+    def bad(cause: str, pointer: str) -> GltfFormatError:
+        return _fail("GLTF_SCHEMA_VIOLATION", cause, pointer)
+
+    def obj_list(value: Any, where: str, pointer: str) -> list:
         if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise FormatError(f"{where} must be an array of objects")
+            raise bad(f"{where} must be an array of objects", pointer)
         return value
 
-    def ints(item: dict, keys: Iterable[str], where: str) -> None:
+    def ints(item: dict, keys: Iterable[str], where: str, pointer: str) -> None:
         for key in keys:
             if key in item and not _is_int(item[key]):
-                raise FormatError(f"{where}.{key} must be an integer, got {item[key]!r}")
+                raise bad(f"{where}.{key} must be an integer, got {item[key]!r}",
+                          f"{pointer}/{pointer_token(key)}")
 
     for top, keys in _INT_FIELDS.items():
-        for i, item in enumerate(obj_list(doc.get(top, []), top)):
-            ints(item, keys, f"{top}[{i}]")
+        for i, item in enumerate(obj_list(doc.get(top, []), top, f"/{top}")):
+            ints(item, keys, f"{top}[{i}]", f"/{top}/{i}")
     for i, acc in enumerate(doc.get("accessors", [])):
         if "normalized" in acc and not isinstance(acc["normalized"], bool):
-            raise FormatError(f"accessors[{i}].normalized must be a boolean")
+            raise bad(f"accessors[{i}].normalized must be a boolean", f"/accessors/{i}/normalized")
         if not isinstance(acc.get("type"), str):
-            raise FormatError(f"accessors[{i}].type must be a string")
+            raise bad(f"accessors[{i}].type must be a string", f"/accessors/{i}/type")
     for i, buf in enumerate(doc.get("buffers", [])):
         if "uri" in buf and not isinstance(buf["uri"], str):
-            raise FormatError(f"buffers[{i}].uri must be a string")
-    for m, mesh in enumerate(obj_list(doc.get("meshes", []), "meshes")):
-        for p, prim in enumerate(obj_list(mesh.get("primitives", []), f"meshes[{m}].primitives")):
+            raise bad(f"buffers[{i}].uri must be a string", f"/buffers/{i}/uri")
+    for m, mesh in enumerate(obj_list(doc.get("meshes", []), "meshes", "/meshes")):
+        for p, prim in enumerate(obj_list(mesh.get("primitives", []), f"meshes[{m}].primitives",
+                                          f"/meshes/{m}/primitives")):
             where = f"meshes[{m}].primitives[{p}]"
-            ints(prim, ("indices", "mode"), where)
+            pointer = f"/meshes/{m}/primitives/{p}"
+            ints(prim, ("indices", "mode"), where, pointer)
             attrs = prim.get("attributes", {})
             if not isinstance(attrs, dict):
-                raise FormatError(f"{where}.attributes must be an object")
-            ints(attrs, list(attrs), f"{where}.attributes")
+                raise bad(f"{where}.attributes must be an object", f"{pointer}/attributes")
+            ints(attrs, list(attrs), f"{where}.attributes", f"{pointer}/attributes")
             if not isinstance(prim.get("extensions", {}), dict):
-                raise FormatError(f"{where}.extensions must be an object")
+                raise bad(f"{where}.extensions must be an object", f"{pointer}/extensions")
 
 
-def _parse_json(raw: bytes) -> tuple[dict, pygltflib.GLTF2]:
+def parse_json(raw: bytes) -> tuple[dict, pygltflib.GLTF2]:
+    """(raw JSON document, pygltflib document) of glTF JSON bytes; raises
+    :class:`GltfFormatError` for bytes that are not UTF-8, not JSON, not an object, or whose
+    members have the wrong types."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
-        raise FormatError(f"glTF JSON is not valid UTF-8 (byte {err.start})") from None
+        raise _fail("JSON_NOT_UTF8", f"glTF JSON is not valid UTF-8 (byte {err.start})") from None
     text = text.lstrip("\ufeff")
     try:
         doc = json.loads(text)
     except (ValueError, RecursionError) as err:
-        raise FormatError(f"glTF JSON is not valid JSON ({err})") from None
+        raise _fail("JSON_INVALID", f"glTF JSON is not valid JSON ({err})") from None
     if not isinstance(doc, dict):
-        raise FormatError("glTF JSON root is not an object")
+        raise _fail("JSON_INVALID", "glTF JSON root is not an object", "")
     _check_types(doc)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             gltf = pygltflib.GLTF2.from_json(text, infer_missing=True)
     except Exception as err:  # the dataclass decoder raises assorted types on bad JSON
-        raise FormatError(f"glTF JSON does not follow the glTF schema "
-                          f"({type(err).__name__}: {err})") from None
+        raise _fail("GLTF_SCHEMA_VIOLATION", f"glTF JSON does not follow the glTF schema "
+                    f"({type(err).__name__}: {err})") from None
     return doc, gltf
 
 
 _SCHEME_RE = re.compile(r"^[A-Za-z][A-Za-z0-9+.\-]*:")
 
 
+@dataclass
+class AccessorLayout:
+    """Where the elements of one accessor lie, every bound already checked.
+
+    Element ``j`` starts at byte ``start + j * stride`` of ``buffer`` (index ``buffer``);
+    it holds ``ncomp`` components of ``dtype``. ``view_offset + accessor_offset == start``.
+    """
+
+    accessor: int
+    view: int
+    buffer: int
+    dtype: np.dtype
+    ncomp: int
+    count: int
+    start: int
+    stride: int
+    component_type: int
+    normalized: bool
+    gtype: str
+
+
 class _Reader:
-    """Bounds-checked access to the buffers and accessors of one glTF document."""
+    """Bounds-checked access to the buffers and accessors of one glTF document.
+
+    ``max_data_uri`` optionally caps the decoded size of each ``data:`` URI (the overall
+    ``budget`` always applies).
+    """
 
     def __init__(self, path: str, gltf: pygltflib.GLTF2, glb_bin: memoryview | None,
-                 budget: int) -> None:
+                 budget: int, max_data_uri: int | None = None) -> None:
         self.path = path
         self.folder = os.path.dirname(os.path.abspath(path))
         self.gltf = gltf
         self.glb_bin = glb_bin
         self.budget = budget
+        self.max_data_uri = max_data_uri
         self.accessors = self._list("accessors")
         self.views = self._list("bufferViews")
         self.buffers_json = self._list("buffers")
@@ -500,79 +625,184 @@ class _Reader:
         if value is None:
             return []
         if not isinstance(value, list):
-            raise FormatError(f"{name} must be an array")
+            raise _fail("GLTF_SCHEMA_VIOLATION", f"{name} must be an array", f"/{name}")
         return value
 
     # -- buffers -----------------------------------------------------------------------
-    def _spend(self, size: int, what: str) -> None:
+    def _spend(self, size: int, what: str, pointer: str) -> None:
         if size > self.budget:
-            raise FormatError(f"{what} would take the asset past the size limit")
+            raise _fail("SIZE_LIMIT_EXCEEDED", f"{what} would take the asset past the size limit",
+                        pointer)
         self.budget -= size
 
-    def _data_uri(self, uri: str, what: str) -> bytes:
+    def _data_uri(self, uri: str, what: str, pointer: str) -> bytes:
         comma = uri.find(",")
         if comma < 0:
-            raise FormatError(f"{what}: malformed data: URI (no comma)")
+            raise _fail("URI_INVALID", f"{what}: malformed data: URI (no comma)", pointer)
         if not uri[5:comma].lower().endswith(";base64"):
-            raise FormatError(f"{what}: only base64 data: URIs are supported")
+            raise _fail("URI_INVALID", f"{what}: only base64 data: URIs are supported", pointer)
         payload = uri[comma + 1:]
-        self._spend(len(payload) * 3 // 4, what)
+        size = len(payload) * 3 // 4
+        if self.max_data_uri is not None and size > self.max_data_uri:
+            raise _fail("DATA_URI_TOO_LARGE", f"{what}: data: URI holds about {size} bytes, more "
+                        f"than the limit of {self.max_data_uri} bytes per data: URI", pointer)
+        self._spend(size, what, pointer)
         try:
             return base64.b64decode(payload, validate=True)
         except (binascii.Error, ValueError):
-            raise FormatError(f"{what}: data: URI is not valid base64") from None
+            raise _fail("URI_INVALID", f"{what}: data: URI is not valid base64", pointer) from None
 
-    def _file_uri(self, uri: str, what: str) -> bytes:
+    def _file_uri(self, uri: str, what: str, pointer: str) -> bytes:
         shown = uri if len(uri) <= 80 else uri[:77] + "..."
         if _SCHEME_RE.match(uri):
             scheme = uri.split(":", 1)[0]
-            raise FormatError(f"{what}: URI {shown!r} uses scheme '{scheme}:'; only data: URIs "
-                              f"and relative file paths are allowed (nothing is fetched)")
+            raise _fail("URI_SCHEME_REJECTED", f"{what}: URI {shown!r} uses scheme '{scheme}:'; "
+                        f"only data: URIs and relative file paths are allowed (nothing is "
+                        f"fetched)", pointer)
         rel = urllib.parse.unquote(uri)
         if "\0" in rel or not rel:
-            raise FormatError(f"{what}: invalid URI {shown!r}")
+            raise _fail("URI_INVALID", f"{what}: invalid URI {shown!r}", pointer)
         if rel.startswith(("/", "\\")) or os.path.isabs(rel) or uri.startswith("//"):
-            raise FormatError(f"{what}: absolute path {shown!r} not allowed; buffer files must be "
-                              f"relative to the asset's folder")
+            raise _fail("URI_ABSOLUTE_PATH", f"{what}: absolute path {shown!r} not allowed; buffer "
+                        f"files must be relative to the asset's folder", pointer)
         if ".." in re.split(r"[\\/]", rel):
-            raise FormatError(f"{what}: URI {shown!r} escapes the asset's folder ('..')")
+            raise _fail("URI_OUTSIDE_FOLDER",
+                        f"{what}: URI {shown!r} escapes the asset's folder ('..')", pointer)
         folder = os.path.realpath(self.folder)
         target = os.path.realpath(os.path.join(folder, rel))
         if os.path.commonpath([folder, target]) != folder:
-            raise FormatError(f"{what}: URI {shown!r} resolves outside the asset's folder")
+            raise _fail("URI_OUTSIDE_FOLDER",
+                        f"{what}: URI {shown!r} resolves outside the asset's folder", pointer)
         if not os.path.isfile(target):
-            raise FormatError(f"{what}: buffer file {shown!r} not found next to the asset")
+            raise _fail("URI_NOT_FOUND",
+                        f"{what}: buffer file {shown!r} not found next to the asset", pointer)
         size = os.path.getsize(target)
-        self._spend(size, what)
+        self._spend(size, what, pointer)
         with open(target, "rb") as handle:
             return handle.read(size)
 
     def buffer(self, i: int) -> memoryview:
+        """The bytes of buffer ``i`` (exactly ``byteLength`` of them)."""
         if i in self._buffers:
             return self._buffers[i]
         buf = self.buffers_json[i]
         what = f"buffers[{i}]"
-        length = _int(buf.byteLength, f"{what}.byteLength")
+        pointer = f"/buffers/{i}"
+        length = _int(buf.byteLength, f"{what}.byteLength", pointer=f"{pointer}/byteLength")
         uri = buf.uri
         if uri is None:
             if i != 0 or self.glb_bin is None:
-                raise FormatError(f"{what} has no uri and the file has no GLB BIN chunk "
-                                  f"(missing BIN chunk)")
+                raise _fail("BUFFER_MISSING_DATA", f"{what} has no uri and the file has no GLB "
+                            f"BIN chunk (missing BIN chunk)", pointer)
             data = self.glb_bin
         elif not isinstance(uri, str):
-            raise FormatError(f"{what}.uri must be a string")
+            raise _fail("GLTF_SCHEMA_VIOLATION", f"{what}.uri must be a string", f"{pointer}/uri")
         elif uri[:5].lower() == "data:":
-            data = memoryview(self._data_uri(uri, what))
+            data = memoryview(self._data_uri(uri, what, f"{pointer}/uri"))
         else:
-            data = memoryview(self._file_uri(uri, what))
+            data = memoryview(self._file_uri(uri, what, f"{pointer}/uri"))
         if len(data) < length:
-            raise FormatError(f"{what} holds {len(data)} bytes but its byteLength is {length}")
+            raise _fail("BUFFER_TOO_SHORT",
+                        f"{what} holds {len(data)} bytes but its byteLength is {length}", pointer)
         self._buffers[i] = data[:length]
         return self._buffers[i]
 
+    def view_bounds(self, v: int) -> tuple[int, int, int]:
+        """(buffer index, byteOffset, byteLength) of bufferView ``v``, within its buffer."""
+        view = self.views[v]
+        pointer = f"/bufferViews/{v}"
+        view_offset = _int(view.byteOffset, f"bufferViews[{v}].byteOffset", default=0,
+                           pointer=f"{pointer}/byteOffset")
+        view_length = _int(view.byteLength, f"bufferViews[{v}].byteLength", minimum=1,
+                           pointer=f"{pointer}/byteLength")
+        b = _index(view.buffer, len(self.buffers_json), f"bufferViews[{v}].buffer",
+                   f"{pointer}/buffer")
+        buf = self.buffer(b)
+        if view_offset + view_length > len(buf):
+            raise _fail("BUFFER_VIEW_OUT_OF_BOUNDS",
+                        f"bufferViews[{v}] (bytes {view_offset}..{view_offset + view_length})"
+                        f" runs past the end of buffers[{b}] ({len(buf)} bytes)", pointer)
+        return b, view_offset, view_length
+
     # -- accessors ---------------------------------------------------------------------
-    def raw(self, i: Any, what: str, gtypes: tuple[str, ...]) -> tuple[np.ndarray, int, bool]:
-        """(elements (count, ncomp) in the stored dtype, componentType, normalized)."""
+    def layout(self, i: int, what: str | None = None) -> AccessorLayout:
+        """Check accessor ``i`` against its bufferView and buffer; where its elements lie.
+
+        Raises :class:`GltfFormatError` (with code and pointer) for invalid component types,
+        sparse or bufferView-less accessors (not supported), misaligned offsets and strides,
+        and every out-of-bounds case. Nothing is read or allocated.
+        """
+        acc = self.accessors[i]
+        pointer = f"/accessors/{i}"
+        where = f"{what} (accessor {i})" if what else f"accessors[{i}]"
+        gtype = acc.type
+        if gtype not in _NCOMP and gtype not in _MAT_ROWS:
+            raise _fail("ACCESSOR_INVALID", f"{where} has unknown type {gtype!r}",
+                        f"{pointer}/type")
+        ctype = acc.componentType
+        if not _is_int(ctype) or int(ctype) not in _DTYPES:
+            raise _fail("ACCESSOR_INVALID", f"{where} has unknown componentType {ctype!r}",
+                        f"{pointer}/componentType")
+        ctype = int(ctype)
+        normalized = acc.normalized
+        if normalized is None:
+            normalized = False
+        if not isinstance(normalized, bool):
+            raise _fail("GLTF_SCHEMA_VIOLATION", f"{where}.normalized must be a boolean",
+                        f"{pointer}/normalized")
+        if normalized and ctype in (FLOAT, UNSIGNED_INT):
+            raise _fail("ACCESSOR_INVALID",
+                        f"{where}: {_CTYPE_NAMES[ctype]} accessors cannot be normalized",
+                        f"{pointer}/normalized")
+        count = _int(acc.count, f"{where}.count", pointer=f"{pointer}/count",
+                     code="ACCESSOR_INVALID")
+        if acc.sparse is not None:
+            raise _fail("ACCESSOR_UNSUPPORTED", f"{where}: sparse accessors not supported",
+                        f"{pointer}/sparse")
+        if acc.bufferView is None:
+            raise _fail("ACCESSOR_UNSUPPORTED", f"{where} has no bufferView (compressed or "
+                        f"placeholder data is not supported)", pointer)
+        v = _index(acc.bufferView, len(self.views), f"{where}.bufferView", f"{pointer}/bufferView")
+        view = self.views[v]
+        dtype = _DTYPES[ctype]
+        if gtype in _MAT_ROWS:  # every column starts 4-byte aligned (glTF 2.0 §3.6.2.4)
+            rows = _MAT_ROWS[gtype]
+            ncomp = rows * rows
+            elem = rows * (-(-rows * dtype.itemsize // 4) * 4)
+        else:
+            ncomp = _NCOMP[gtype]
+            elem = dtype.itemsize * ncomp
+        acc_offset = _int(acc.byteOffset, f"{where}.byteOffset", default=0,
+                          pointer=f"{pointer}/byteOffset")
+        if acc_offset % dtype.itemsize:
+            raise _fail("ACCESSOR_MISALIGNED", f"{where}.byteOffset {acc_offset} is not a multiple "
+                        f"of the component size {dtype.itemsize}", f"{pointer}/byteOffset")
+        b, view_offset, view_length = self.view_bounds(v)
+        vpointer = f"/bufferViews/{v}/byteStride"
+        stride = elem if view.byteStride is None else _int(
+            view.byteStride, f"bufferViews[{v}].byteStride", minimum=1, pointer=vpointer,
+            code="BUFFER_VIEW_STRIDE_INVALID")
+        if stride < elem:
+            raise _fail("BUFFER_VIEW_STRIDE_INVALID", f"bufferViews[{v}].byteStride {stride} is "
+                        f"smaller than the {elem}-byte elements of {where}", vpointer)
+        if stride % dtype.itemsize:
+            raise _fail("BUFFER_VIEW_STRIDE_INVALID", f"bufferViews[{v}].byteStride {stride} is "
+                        f"not a multiple of the component size of {where}", vpointer)
+        if count:
+            need = acc_offset + stride * (count - 1) + elem
+            if need > view_length:
+                raise _fail("ACCESSOR_OUT_OF_BOUNDS", f"{where} out of bounds: needs {need} bytes "
+                            f"of bufferViews[{v}] which has {view_length}", pointer)
+        return AccessorLayout(i, v, b, dtype, ncomp, count, view_offset + acc_offset, stride,
+                              ctype, normalized, gtype)
+
+    def raw(self, i: Any, what: str, gtypes: tuple[str, ...], *,
+            copy: bool = True) -> tuple[np.ndarray, int, bool]:
+        """(elements (count, ncomp) in the stored dtype, componentType, normalized).
+
+        ``copy=False`` returns a read-only view into the buffer where the data are tightly
+        packed (checks that only read the values avoid a copy).
+        """
         i = _index(i, len(self.accessors), f"{what}: accessor")
         acc = self.accessors[i]
         where = f"{what} (accessor {i})"
@@ -581,70 +811,29 @@ class _Reader:
             raise FormatError(f"{where} has type {gtype!r}, expected {' or '.join(gtypes)}")
         if i in self._raw:
             return self._raw[i]
-        ctype = acc.componentType
-        if not _is_int(ctype) or int(ctype) not in _DTYPES:
-            raise FormatError(f"{where} has unknown componentType {ctype!r}")
-        ctype = int(ctype)
-        normalized = acc.normalized
-        if normalized is None:
-            normalized = False
-        if not isinstance(normalized, bool):
-            raise FormatError(f"{where}.normalized must be a boolean")
-        if normalized and ctype in (FLOAT, UNSIGNED_INT):
-            raise FormatError(f"{where}: {_CTYPE_NAMES[ctype]} accessors cannot be normalized")
-        count = _int(acc.count, f"{where}.count")
-        if acc.sparse is not None:
-            raise FormatError(f"{where}: sparse accessors not supported")
-        if acc.bufferView is None:
-            raise FormatError(f"{where} has no bufferView (compressed or placeholder data is "
-                              f"not supported)")
-        v = _index(acc.bufferView, len(self.views), f"{where}.bufferView")
-        view = self.views[v]
-        dtype = _DTYPES[ctype]
-        ncomp = _NCOMP[gtype]
-        elem = dtype.itemsize * ncomp
-        acc_offset = _int(acc.byteOffset, f"{where}.byteOffset", default=0)
-        if acc_offset % dtype.itemsize:
-            raise FormatError(f"{where}.byteOffset {acc_offset} is not a multiple of the "
-                              f"component size {dtype.itemsize}")
-        view_offset = _int(view.byteOffset, f"bufferViews[{v}].byteOffset", default=0)
-        view_length = _int(view.byteLength, f"bufferViews[{v}].byteLength", minimum=1)
-        stride = elem if view.byteStride is None else _int(view.byteStride,
-                                                           f"bufferViews[{v}].byteStride", minimum=1)
-        if stride < elem:
-            raise FormatError(f"bufferViews[{v}].byteStride {stride} is smaller than the "
-                              f"{elem}-byte elements of {where}")
-        if stride % dtype.itemsize:
-            raise FormatError(f"bufferViews[{v}].byteStride {stride} is not a multiple of the "
-                              f"component size of {where}")
-        b = _index(view.buffer, len(self.buffers_json), f"bufferViews[{v}].buffer")
-        buf = self.buffer(b)
-        if view_offset + view_length > len(buf):
-            raise FormatError(f"bufferViews[{v}] (bytes {view_offset}..{view_offset + view_length})"
-                              f" runs past the end of buffers[{b}] ({len(buf)} bytes)")
-        if count:
-            need = acc_offset + stride * (count - 1) + elem
-            if need > view_length:
-                raise FormatError(f"{where} out of bounds: needs {need} bytes of bufferViews[{v}]"
-                                  f" which has {view_length}")
-            arr = np.ndarray((count, ncomp), dtype=dtype, buffer=buf,
-                             offset=view_offset + acc_offset, strides=(stride, dtype.itemsize))
+        lay = self.layout(i, what)
+        if lay.count:
+            arr = np.ndarray((lay.count, lay.ncomp), dtype=lay.dtype, buffer=self.buffer(lay.buffer),
+                             offset=lay.start, strides=(lay.stride, lay.dtype.itemsize))
+            if not copy and arr.flags.c_contiguous and arr.flags.aligned:
+                return arr, lay.component_type, lay.normalized
             arr = np.array(arr, copy=True)
         else:
-            arr = np.zeros((0, ncomp), dtype)
-        self._raw[i] = (arr, ctype, normalized)
+            arr = np.zeros((0, lay.ncomp), lay.dtype)
+        self._raw[i] = (arr, lay.component_type, lay.normalized)
         return self._raw[i]
 
     def floats(self, i: Any, what: str, gtypes: tuple[str, ...],
                allowed: Iterable[tuple[int, bool | None]] | None = None,
-               renormalize: bool = False) -> np.ndarray:
+               renormalize: bool = False, finite: bool = True, copy: bool = True) -> np.ndarray:
         """Accessor ``i`` as float32 (count, ncomp), dequantized per glTF 2.0 §3.11.
 
         ``allowed`` lists (componentType, normalized) pairs (normalized ``None``: either);
         default: any type but UNSIGNED_INT. ``renormalize`` rescales integer-quantized rows to
-        unit length (quaternions).
+        unit length (quaternions). ``finite`` rejects FLOAT data holding NaN or infinity.
+        ``copy=False`` may return FLOAT data as a read-only view into the buffer.
         """
-        arr, ctype, normalized = self.raw(i, what, gtypes)
+        arr, ctype, normalized = self.raw(i, what, gtypes, copy=copy)
         if allowed is None:
             ok = ctype != UNSIGNED_INT
         else:
@@ -653,6 +842,10 @@ class _Reader:
             kind = _CTYPE_NAMES[ctype] + (" normalized" if normalized else "")
             raise FormatError(f"{what} (accessor {i}) has unsupported component type {kind}")
         if ctype == FLOAT:
+            if finite and not np.isfinite(arr).all():
+                bad = int(np.count_nonzero(~np.isfinite(arr).all(axis=1)))
+                raise _fail("NON_FINITE_VALUE", f"{what} (accessor {i}): {bad} of {len(arr)} "
+                            f"elements hold NaN or infinity", f"/accessors/{i}")
             return arr
         values = arr.astype(np.float64)
         if normalized:
@@ -785,14 +978,13 @@ class _AssetReader:
             raise FormatError(f"{where}.faceIndex value {int(face.max())} out of range for an "
                               f"anchor mesh with {mesh.face_count} triangles")
         bary = checked("barycentrics", r.floats(
-            obj["barycentrics"], f"{where}.barycentrics", ("VEC2",),
-            allowed=[(FLOAT, False), (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, True)]))
+            obj["barycentrics"], f"{where}.barycentrics", *ANCHOR_ACCESSOR_FORMATS["barycentrics"]))
         if profile == "games":
             if "deformation" in obj:
                 raise FormatError(f"{where}: 'deformation' must not be present with the games "
                                   f"profile")
-            rho = checked("rho", r.floats(obj["rho"], f"{where}.rho", ("SCALAR",),
-                                          allowed=[(FLOAT, False)]))
+            rho = checked("rho", r.floats(obj["rho"], f"{where}.rho",
+                                          *ANCHOR_ACCESSOR_FORMATS["rho"]))
             anchors = GamesAnchors(face, bary, rho[:, 0])
         else:
             deformation = obj.get("deformation", "affine")
@@ -800,17 +992,15 @@ class _AssetReader:
                 raise FormatError(f"{where}.deformation must be 'affine' or 'rigid', got "
                                   f"{deformation!r}")
             offset = checked("normalOffset", r.floats(
-                obj["normalOffset"], f"{where}.normalOffset", ("SCALAR",),
-                allowed=[(FLOAT, False)]))
+                obj["normalOffset"], f"{where}.normalOffset",
+                *ANCHOR_ACCESSOR_FORMATS["normalOffset"]))
             rot_i = obj["localRotation"]
             arr, ctype, _ = r.raw(rot_i, f"{where}.localRotation", ("VEC4",))
             rotation = checked("localRotation", r.floats(
-                rot_i, f"{where}.localRotation", ("VEC4",),
-                allowed=[(FLOAT, False), (BYTE, True), (SHORT, True)],
+                rot_i, f"{where}.localRotation", *ANCHOR_ACCESSOR_FORMATS["localRotation"],
                 renormalize=ctype != FLOAT))
             scale = checked("localScale", r.floats(
-                obj["localScale"], f"{where}.localScale", ("VEC3",),
-                allowed=[(FLOAT, False), (UNSIGNED_BYTE, None), (UNSIGNED_SHORT, None)]))
+                obj["localScale"], f"{where}.localScale", *ANCHOR_ACCESSOR_FORMATS["localScale"]))
             anchors = LocalAnchors(face, bary, offset[:, 0], rotation, scale, deformation)
         return Anchoring(mesh, anchors)
 
@@ -878,35 +1068,81 @@ def _node_names(gltf: pygltflib.GLTF2) -> dict[int, str]:
     return names
 
 
-def _check_header(gltf: pygltflib.GLTF2) -> None:
-    version = getattr(gltf.asset, "version", None)
-    if not isinstance(version, str) or not version.startswith("2."):
-        raise FormatError(f"unsupported glTF asset.version {version!r} (expected '2.0')")
-    required = gltf.extensionsRequired or []
+def header_problems(doc: dict, *, strict: bool = True) -> list[GltfFormatError]:
+    """Problems with ``asset.version`` and ``extensionsRequired`` of a raw glTF document.
+
+    ``strict=False`` (the reader) accepts a missing ``asset``/``version`` as 2.0, as the
+    document decoder does; ``strict=True`` (the validator) reports it.
+    """
+    problems: list[GltfFormatError] = []
+    asset = doc.get("asset")
+    version = asset.get("version") if isinstance(asset, dict) else None
+    if not (version is None and not strict) and (
+            not isinstance(version, str) or not version.startswith("2.")):
+        problems.append(_fail("ASSET_VERSION_UNSUPPORTED", f"unsupported glTF asset.version "
+                              f"{version!r} (expected '2.0')", "/asset/version"
+                              if isinstance(asset, dict) else "/asset"))
+    required = doc.get("extensionsRequired", [])
     if not isinstance(required, list):
-        raise FormatError("extensionsRequired must be an array")
-    for name in required:
+        problems.append(_fail("GLTF_SCHEMA_VIOLATION", "extensionsRequired must be an array",
+                              "/extensionsRequired"))
+        required = []
+    for i, name in enumerate(required):
         if name in _UNREADABLE_REQUIRED or (isinstance(name, str) and name.startswith(KHR + "_")):
-            raise FormatError(f"the asset requires extension {name}, which is not supported")
+            problems.append(_fail("UNSUPPORTED_REQUIRED_EXTENSION", f"the asset requires "
+                                  f"extension {name}, which is not supported",
+                                  f"/extensionsRequired/{i}"))
+    return problems
+
+
+@dataclass
+class Document:
+    """A parsed glTF container: ``doc`` is the raw JSON, ``gltf`` the decoded document,
+    ``reader`` the bounds-checked buffer and accessor access, ``glb`` whether the container is
+    a GLB, ``size`` the file size in bytes."""
+
+    doc: dict
+    gltf: pygltflib.GLTF2
+    reader: "_Reader"
+    glb: bool
+    size: int
+
+
+def load_document(path: str, max_bytes: int = DEFAULT_MAX_BYTES, *,
+                  max_data_uri: int | None = None,
+                  issues: list[tuple[str, str, int]] | None = None) -> Document:
+    """Read and parse the container (GLB or JSON) of ``path``; no header checks.
+
+    ``max_bytes`` caps the file plus every buffer it loads later; ``max_data_uri`` caps each
+    ``data:`` URI; ``issues`` collects non-fatal GLB problems (see :func:`parse_glb`).
+    Raises :class:`GltfFormatError` (or ``OSError`` when the file cannot be read).
+    """
+    size = os.path.getsize(path)
+    if size > max_bytes:
+        raise _fail("SIZE_LIMIT_EXCEEDED",
+                    f"file is {size} bytes, larger than the limit of {max_bytes} bytes")
+    with open(path, "rb") as handle:  # read(n) reserves n bytes: never ask for the cap itself
+        data = memoryview(handle.read(size + 1 if size < max_bytes else max_bytes + 1))
+    if len(data) > max_bytes:
+        raise _fail("SIZE_LIMIT_EXCEEDED", f"file is larger than the limit of {max_bytes} bytes")
+    glb_bin = None
+    glb = bytes(data[:4]) == _GLB_MAGIC or os.path.splitext(path)[1].lower() == ".glb"
+    if glb:
+        raw_json, glb_bin = parse_glb(data, issues)
+    else:
+        raw_json = bytes(data)
+    doc, gltf = parse_json(raw_json)
+    reader = _Reader(path, gltf, glb_bin, max_bytes - len(data), max_data_uri)
+    return Document(doc, gltf, reader, glb, len(data))
 
 
 def _load_document(path: str, max_bytes: int) -> tuple[pygltflib.GLTF2, _Reader]:
     """Parse the container (GLB or JSON) and header; return the document and a bounded reader."""
-    size = os.path.getsize(path)
-    if size > max_bytes:
-        raise FormatError(f"file is {size} bytes, larger than the limit of {max_bytes} bytes")
-    with open(path, "rb") as handle:
-        data = memoryview(handle.read(max_bytes + 1))
-    if len(data) > max_bytes:
-        raise FormatError(f"file is larger than the limit of {max_bytes} bytes")
-    glb_bin = None
-    if bytes(data[:4]) == _GLB_MAGIC or os.path.splitext(path)[1].lower() == ".glb":
-        raw_json, glb_bin = _parse_glb(data)
-    else:
-        raw_json = bytes(data)
-    _, gltf = _parse_json(raw_json)
-    _check_header(gltf)
-    return gltf, _Reader(path, gltf, glb_bin, max_bytes - len(data))
+    document = load_document(path, max_bytes)
+    problems = header_problems(document.doc, strict=False)
+    if problems:
+        raise problems[0]
+    return document.gltf, document.reader
 
 
 def _read(path: str, max_bytes: int) -> SplatAsset:

@@ -3,7 +3,8 @@
 Every reader returns a :class:`SplatAsset` in the glTF coordinate frame (+Y up); every writer
 takes one. PLY files are in the 3DGS frame: by default the PLY reader/writer here rotate 180°
 about Z on the way in and out (see :mod:`gsverse_format.transform`); pass
-``frame_change=False`` to keep coordinates as they are.
+``frame_change=False`` to keep coordinates as they are. USD files (``spec/usd.md``) need the
+optional usd-core package.
 """
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ from typing import Iterable
 from ..errors import UsageError
 from ..model import SplatAsset, SplatCloud, SplatPrimitive
 from ..transform import PLY_TO_GLTF, rotate_splats
+from .usd import USD_SUFFIXES  # pxr itself is imported only when a USD file is used
 
-SPLAT_INPUTS = (".ply", ".glb", ".gltf")
-SPLAT_OUTPUTS = (".glb", ".gltf", ".ply")
+SPLAT_INPUTS = (".ply", ".glb", ".gltf") + USD_SUFFIXES
+SPLAT_OUTPUTS = (".glb", ".gltf", ".ply") + USD_SUFFIXES
 
 
 def _ext(path: str | os.PathLike) -> str:
@@ -23,7 +25,7 @@ def _ext(path: str | os.PathLike) -> str:
 
 
 def read_asset(path: str | os.PathLike, *, frame_change: bool = True) -> SplatAsset:
-    """Read splats from a 3DGS PLY or a KHR_gaussian_splatting glTF/GLB file."""
+    """Read splats from a 3DGS PLY, a KHR_gaussian_splatting glTF/GLB or a USD file."""
     ext = _ext(path)
     if ext == ".ply":
         from .ply import read_splat_ply
@@ -37,15 +39,29 @@ def read_asset(path: str | os.PathLike, *, frame_change: bool = True) -> SplatAs
         from .gltf import read_gltf
 
         return read_gltf(path)
+    if ext in USD_SUFFIXES:
+        from .usd import read_usd
+
+        return read_usd(path)
     raise UsageError(f"unsupported splat input format {ext or '(no extension)'}; "
                      f"use one of {', '.join(SPLAT_INPUTS)}", path)
 
 
 def write_asset(asset: SplatAsset, path: str | os.PathLike, *, frame_change: bool = True,
-                protect: Iterable[str | os.PathLike] = ()) -> None:
-    """Write ``asset``; PLY output holds all splats of all primitives (no anchoring)."""
+                protect: Iterable[str | os.PathLike] = (), bake_poses=None) -> None:
+    """Write ``asset``; PLY output holds all splats of all primitives (no anchoring).
+
+    ``bake_poses`` (a :class:`gsverse_format.io.usd.BakedPoses`) is for USD output only.
+    """
     ext = _ext(path)
     protect = tuple(protect)
+    if bake_poses is not None and ext not in USD_SUFFIXES:
+        raise UsageError(f"baked poses need a USD output ({', '.join(USD_SUFFIXES)})", path)
+    if ext in USD_SUFFIXES:
+        from .usd import write_usd
+
+        write_usd(asset, path, protect=protect, bake_poses=bake_poses)
+        return
     if ext in (".glb", ".gltf"):
         from .gltf import write_gltf
 

@@ -1,0 +1,1 @@
+"""Benchmarks: reproducible timings of the package against other tools, run as modules."""

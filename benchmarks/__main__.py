@@ -1,0 +1,123 @@
+"""``python -m benchmarks``: speed, accuracy and memory of gsverse-format, as one report.
+
+Writes ``report.md``, PNG plots and ``results.json`` into ``--out`` (default
+``benchmark-report/``). ``--quick`` runs a small version of everything (about a minute; CI runs
+it to check that the benchmarks work, not their timings).
+
+Sections: remap speed (numpy reference and fast path against the memory-bandwidth floor),
+nearest-triangle binding against Open3D and trimesh (``benchmarks/binding.py``, run as a
+separate process), ``gsverse-convert`` end to end against plain reading and writing,
+validation time (``benchmarks/validate.py``, a separate process), peak memory, accuracy against
+analytic deformations across profiles, anchor resolutions and quantizations with the cost of
+each point, and the stretch comparison with a VR-GS-style cage.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import os
+import platform
+import resource
+import sys
+import time
+from pathlib import Path
+
+SECTIONS = ("remap", "binding", "convert", "validate", "accuracy")
+HERE = Path(__file__).resolve().parent
+
+
+def _meta(argv: list[str], quick: bool) -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
+    except (ValueError, OSError, AttributeError):
+        mem = float("nan")
+    versions = {}
+    for mod in ("numpy", "scipy", "numba", "trimesh", "matplotlib", "open3d"):
+        try:
+            from importlib.metadata import version
+
+            versions[mod] = version(mod if mod != "open3d" else "open3d")
+        except Exception:
+            versions[mod] = "absent"
+    try:
+        import numba
+
+        versions["numba threads"] = str(numba.config.NUMBA_NUM_THREADS)
+    except Exception:
+        pass
+    return {"command": " ".join(["python -m benchmarks", *argv]), "quick": quick, "cpu": cpu,
+            "cores": os.cpu_count(), "memory_gib": mem, "python": platform.python_version(),
+            "versions": versions, "date": datetime.datetime.now().astimezone().isoformat(timespec="minutes")}
+
+
+def _external(module: str, args: list[str], log) -> dict:
+    """Run ``python -m benchmarks.<module> args`` (another benchmark script) and keep its
+    Markdown output, wall time and peak memory."""
+    from .convert import run_process
+
+    if not (HERE / f"{module}.py").is_file():
+        return {"missing": f"benchmarks/{module}.py"}
+    cmd = [sys.executable, "-m", f"benchmarks.{module}", *args]
+    log(f"{module}: running `{' '.join(['python', '-m', f'benchmarks.{module}', *args])}`")
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE.parent), env.get("PYTHONPATH")]))
+    res = run_process(cmd, cwd=str(HERE.parent), env=env)
+    res["command"] = " ".join(["python", "-m", f"benchmarks.{module}", *args])
+    log(f"{module}: done in {res['wall_s']:.1f} s (exit {res['rc']})")
+    return res
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    p = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n")[0])
+    p.add_argument("--out", default="benchmark-report", help="output folder (default: benchmark-report)")
+    p.add_argument("--quick", action="store_true", help="small sizes (about a minute)")
+    p.add_argument("--only", nargs="+", choices=SECTIONS, help="run only these sections")
+    p.add_argument("--skip", nargs="+", choices=SECTIONS, default=[], help="skip these sections")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    args = p.parse_args(argv)
+    log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    sections = [s for s in (args.only or SECTIONS) if s not in args.skip]
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    res: dict = {}
+    quick = args.quick
+    if "remap" in sections:
+        from . import remap
+
+        res["remap"] = remap.run(quick, log)
+    if "binding" in sections:
+        res["binding"] = _external("binding", ["--quick", "--points", "20000", "--faces", "20000"]
+                                   if quick else [], log)
+    if "convert" in sections:
+        from . import convert
+
+        res["convert"] = convert.run(quick, log)
+    if "validate" in sections:
+        res["validate"] = _external("validate", ["--quick"] if quick else [], log)
+    if "accuracy" in sections:
+        from . import accuracy
+
+        res["accuracy"] = accuracy.run(quick, log)
+    res["self_peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    res["meta"] = _meta(argv, quick)
+    res["meta"]["seconds"] = time.perf_counter() - t0
+    from .report import write_report
+
+    path = write_report(res, out)
+    log(f"report: {path} ({res['meta']['seconds']:.0f} s)")
+    print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

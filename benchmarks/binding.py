@@ -1,0 +1,299 @@
+"""Nearest-triangle binding throughput: this package against Open3D and trimesh, in one run.
+
+Usage (from the repository root)::
+
+    python -m benchmarks.binding             # ~1M faces, 1M points
+    python -m benchmarks.binding --quick     # ~50k faces, 50k points (a smoke run, < 30 s)
+    python -m benchmarks.binding --points 200000 --faces 300000 --mesh sphere
+
+Workload: a bumpy, vertex-jittered torus (``--mesh torus``, the default; non-convex) or a bumpy
+icosphere (``--mesh sphere``, subdivision level nearest to ``--faces``), and query points that
+are area-weighted surface samples plus Gaussian noise with σ = 0.5 × the mean edge length.
+
+Methods, timed side by side on the same points:
+
+* ``gsverse_format.nearest.nearest_triangles(method="numba")``: the whole call (input checks,
+  BVH build and queries), after one warm-up call; and its queries alone on a prebuilt tree.
+  The first call of the process (numba import and compilation, or loading the on-disk cache) is
+  reported separately, and in the full run also a compilation from scratch in a subprocess.
+* Open3D ``RaycastingScene.compute_closest_points`` (float32), queries only, after a warm-up
+  call that builds its BVH (the build is reported separately). Open3D is not a dependency of
+  this package; it is only measured when it can be imported.
+* ``trimesh.proximity.closest_point`` on a subset of the points (per-point cost extrapolated);
+  its R-tree is built before timing.
+
+Accuracy: distances are compared with ours (float64, certified exact). Ours is also checked to
+be bit-identical to the numpy reference implementation on a subset (``--verify`` points).
+Faces may legitimately differ where several faces are at the same distance (shared edges and
+vertices); ours returns the smallest index.
+
+Every timing is repeated; the table gives the median over repetitions during which other
+processes used less than a quarter of a core (over all repetitions when there were none, marked
+†), the best repetition, and the range of cores other processes used meanwhile.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from .timing import Timing, measure
+
+SIGMA_EDGES = 0.5         # query noise, in mean edge lengths
+F32_EPS = 2.0 ** -24      # float32 unit roundoff
+
+
+# --------------------------------------------------------------------------- workload
+
+def bumpy_torus(faces: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Closed torus (major radius 1, minor 0.35) of about ``faces`` triangles, with smooth
+    bumps and vertex jitter (irregular, slightly anisotropic triangles)."""
+    rng = np.random.default_rng(seed)
+    ratio = 1.0 / 0.35
+    nv = max(3, int(round(np.sqrt(faces / (2 * ratio)))))
+    nu = max(3, int(round(faces / (2 * nv))))
+    u = 2 * np.pi * np.arange(nu) / nu
+    w = 2 * np.pi * np.arange(nv) / nv
+    U, W = np.meshgrid(u, w, indexing="ij")
+    r = 0.35 * (1 + 0.08 * np.sin(7 * U) * np.sin(5 * W) + 0.02 * np.sin(23 * U + 11 * W))
+    x = (1 + r * np.cos(W)) * np.cos(U)
+    y = (1 + r * np.cos(W)) * np.sin(U)
+    z = r * np.sin(W)
+    v = np.column_stack([x.ravel(), y.ravel(), z.ravel()])
+    v += 0.15 * (2 * np.pi * 0.35 / nv) * rng.normal(size=v.shape)
+    i, j = np.meshgrid(np.arange(nu), np.arange(nv), indexing="ij")
+    a = i * nv + j
+    b = ((i + 1) % nu) * nv + j
+    c = ((i + 1) % nu) * nv + (j + 1) % nv
+    d = i * nv + (j + 1) % nv
+    f = np.concatenate([np.column_stack([a.ravel(), b.ravel(), c.ravel()]),
+                        np.column_stack([a.ravel(), c.ravel(), d.ravel()])])
+    return v, f.astype(np.int64)
+
+
+def bumpy_sphere(faces: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Icosphere of the subdivision level whose face count (20·4^L) is nearest to ``faces``,
+    with 1% radial vertex noise."""
+    import trimesh
+
+    level = int(np.clip(np.round(np.log(max(faces, 20) / 20) / np.log(4)), 0, 9))
+    ico = trimesh.creation.icosphere(subdivisions=level)
+    rng = np.random.default_rng(seed)
+    v = ico.vertices * (1.0 + 0.01 * rng.uniform(-1, 1, size=(len(ico.vertices), 1)))
+    return np.asarray(v, np.float64), np.asarray(ico.faces, np.int64)
+
+
+def query_points(v: np.ndarray, f: np.ndarray, n: int, seed: int = 1):
+    """Area-weighted surface samples plus N(0, (0.5 mean edge)²) noise; returns (points, edge)."""
+    rng = np.random.default_rng(seed)
+    tri = v[f]
+    edge = float(np.mean(np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)))
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    fi = rng.choice(len(f), n, p=area / area.sum())
+    bary = rng.dirichlet([1.0, 1.0, 1.0], n)
+    p = np.einsum("ni,nij->nj", bary, tri[fi]) + SIGMA_EDGES * edge * rng.normal(size=(n, 3))
+    return p, edge
+
+
+# --------------------------------------------------------------------------- helpers
+
+def _fmt_rate(t: Timing, n: int) -> tuple[str, str]:
+    mark = " †" if t.contended else ""
+    return f"{n / t.median / 1e6:.3f}{mark}", f"{n / t.best / 1e6:.3f}"
+
+
+def _load(t: Timing) -> str:
+    lo, hi = t.other_cores
+    return f"{lo:.2f}-{hi:.2f}"
+
+
+def _compile_from_scratch() -> float | None:
+    """Seconds to import and compile the kernels in a fresh process with an empty cache."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        code = ("import time; t = time.perf_counter(); "
+                "from gsverse_format import nearest_fast; nearest_fast.warm_up(); "
+                "print(time.perf_counter() - t)")
+        try:
+            out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                                 text=True, timeout=600, check=True)
+            return float(out.stdout.strip().splitlines()[-1])
+        except (subprocess.SubprocessError, ValueError, IndexError):
+            return None
+
+
+# --------------------------------------------------------------------------- main
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.binding", description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="~50k faces and 50k points (smoke run)")
+    ap.add_argument("--points", type=int, default=None, help="query points (default 1,000,000)")
+    ap.add_argument("--faces", type=int, default=None, help="mesh faces (default ~1,000,000)")
+    ap.add_argument("--mesh", choices=("torus", "sphere"), default="torus")
+    ap.add_argument("--repeat", type=int, default=None, help="timed repetitions per method")
+    ap.add_argument("--trimesh-points", type=int, default=None, help="trimesh subset size")
+    ap.add_argument("--verify", type=int, default=None,
+                    help="points checked against the numpy reference implementation")
+    ap.add_argument("--no-compile-time", action="store_true",
+                    help="skip measuring a compilation from an empty cache (a fresh process)")
+    ap.add_argument("--threads", type=int, default=None,
+                    help="pin the process to this many CPUs (all methods) and use as many "
+                         "numba threads; default: all CPUs")
+    args = ap.parse_args(argv)
+    if args.threads:
+        # before numba or Open3D start their thread pools, which inherit the affinity
+        cpus = sorted(os.sched_getaffinity(0))[:args.threads]
+        os.sched_setaffinity(0, cpus)
+        os.environ["NUMBA_NUM_THREADS"] = str(len(cpus))
+        os.environ["OMP_NUM_THREADS"] = str(len(cpus))
+    quick = args.quick
+    n = args.points or (50_000 if quick else 1_000_000)
+    nfaces = args.faces or (50_000 if quick else 1_000_000)
+    repeat = args.repeat or (2 if quick else 5)
+    n_tm = min(n, args.trimesh_points or (2_000 if quick else 20_000))
+    n_ver = min(n, args.verify if args.verify is not None else (2_000 if quick else 2_000))
+
+    v, f = bumpy_torus(nfaces) if args.mesh == "torus" else bumpy_sphere(nfaces)
+    p, edge = query_points(v, f, n)
+    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    print(f"# Nearest-triangle binding: {args.mesh}, {len(f):,} faces, {n:,} points "
+          f"(noise σ = {SIGMA_EDGES} × mean edge = {SIGMA_EDGES * edge:.3g}), "
+          f"{cpus} of {os.cpu_count()} CPUs")
+    print()
+
+    rows = []          # method, Mpts/s median, best, threads, exact, max diff, agreement, load
+    notes = []
+
+    # ---- ours
+    t0 = time.perf_counter()
+    import numba
+
+    from gsverse_format import nearest_fast
+    from gsverse_format.nearest import nearest_triangles
+    nearest_fast.warm_up()
+    first_call = time.perf_counter() - t0
+    threads = numba.get_num_threads()
+    result = {}
+
+    def ours_full():
+        result["r"] = nearest_triangles(p, v, f, method="numba")
+
+    t_full = measure(ours_full, repeat=1, batches=repeat, warmup=1)
+    ref = result["r"]
+    idx = np.arange(len(f))
+    t_build = measure(lambda: result.__setitem__("tree", nearest_fast.build_tree(v, f, idx)),
+                      repeat=1, batches=repeat, warmup=0)
+    tree = result["tree"]
+    t_query = measure(lambda: nearest_fast.query_tree(tree, p), repeat=1, batches=repeat, warmup=0)
+
+    exact = "certified float64"
+    if n_ver:
+        sub = np.random.default_rng(2).choice(n, n_ver, replace=False)
+        numpy_ref = nearest_triangles(p[sub], v, f, method="numpy")
+        same = all(np.array_equal(getattr(numpy_ref, k), getattr(ref, k)[sub])
+                   for k in ("face", "distance", "closest", "barycentric"))
+        exact += f"; {'identical' if same else 'DIFFERS'} to numpy reference on {n_ver:,} pts"
+    med, best = _fmt_rate(t_full, n)
+    rows.append(["ours, `nearest_triangles` (checks + BVH build + queries)", med, best, threads,
+                 exact, "0 (reference)", "100%", _load(t_full)])
+    med, best = _fmt_rate(t_query, n)
+    rows.append(["ours, queries only (BVH prebuilt)", med, best, threads, "same", "0", "100%",
+                 _load(t_query)])
+    notes.append(f"ours: BVH build {t_build.median:.3f} s (best {t_build.best:.3f}); first call in "
+                 f"this process (numba import + compile or cache load) {first_call:.2f} s")
+    if not quick and not args.no_compile_time:
+        scratch = _compile_from_scratch()
+        notes.append("ours: compilation from an empty cache (fresh process, import included): "
+                     + (f"{scratch:.1f} s" if scratch is not None else "failed to measure"))
+    scale = np.abs(v).max() + np.abs(p).max(axis=1)
+
+    # ---- Open3D
+    t_o3d = None
+    try:
+        import open3d as o3d
+    except Exception as exc:                       # not installed, or a missing system library
+        notes.append(f"Open3D: not measured (`import open3d` failed: {exc}). To compare, "
+                     "install it: `pip install open3d` (on Debian/Ubuntu also "
+                     "`apt-get install libusb-1.0-0`).")
+    else:
+        tb = time.perf_counter()
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(o3d.core.Tensor(v.astype(np.float32)),
+                            o3d.core.Tensor(f.astype(np.uint32)))
+        pts = o3d.core.Tensor(p.astype(np.float32))
+        scene.compute_closest_points(o3d.core.Tensor(p[:1].astype(np.float32)))   # builds BVH
+        o3d_build = time.perf_counter() - tb
+        out = {}
+        t_o3d = measure(lambda: out.__setitem__("r", scene.compute_closest_points(pts)),
+                        repeat=1, batches=repeat, warmup=1)
+        cp = out["r"]["points"].numpy().astype(np.float64)
+        fid = out["r"]["primitive_ids"].numpy().astype(np.int64)
+        d = np.linalg.norm(p - cp, axis=1)
+        diff = np.abs(d - ref.distance)
+        ok = bool(np.all(diff <= 8 * F32_EPS * scale))
+        med, best = _fmt_rate(t_o3d, n)
+        rows.append([f"Open3D {o3d.__version__} `compute_closest_points` (float32, queries only)",
+                     med, best, cpus,
+                     "to float32 rounding" if ok else "no", f"{diff.max():.1e}",
+                     f"{np.mean(fid == ref.face):.2%}", _load(t_o3d)])
+        notes.append(f"Open3D: scene + BVH build {o3d_build:.3f} s (not in its rate)")
+
+    # ---- trimesh
+    try:
+        import rtree  # noqa: F401  (trimesh's proximity queries need it)
+        import trimesh
+        import trimesh.proximity
+    except Exception as exc:
+        notes.append(f"trimesh: not measured ({exc}; `pip install trimesh rtree` to include it)")
+    else:
+        sub = np.random.default_rng(3).choice(n, n_tm, replace=False)
+        mesh = trimesh.Trimesh(v, f, process=False)
+        tb = time.perf_counter()
+        mesh.triangles_tree                      # noqa: B018  (builds the R-tree)
+        tm_build = time.perf_counter() - tb
+        out = {}
+        t_tm = measure(lambda: out.__setitem__("r", trimesh.proximity.closest_point(mesh, p[sub])),
+                       repeat=1, batches=1, warmup=0)
+        _, d, tid = out["r"]
+        diff = d - ref.distance[sub]
+        farther = diff > 1e-12 * scale[sub]
+        med, best = _fmt_rate(t_tm, n_tm)
+        rows.append([f"trimesh {trimesh.__version__} `proximity.closest_point` "
+                     f"({n_tm:,}-pt subset, extrapolated)", med, best, 1,
+                     f"no: {farther.mean():.2%} farther" if farther.any() else "yes on this subset",
+                     f"{np.abs(diff).max():.1e}", f"{np.mean(tid == ref.face[sub]):.2%}",
+                     _load(t_tm)])
+        notes.append(f"trimesh: R-tree build {tm_build:.2f} s (not in its rate)")
+
+    # ---- report
+    print("| method | Mpts/s (median) | Mpts/s (best) | threads | exact? | max abs(d - d_ref) "
+          "| face agreement | other cores busy |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print("| " + " | ".join(str(x) for x in r) + " |")
+    print()
+    if t_o3d is not None:
+        e2e = t_o3d.median / t_full.median
+        qq = t_o3d.median / t_query.median
+        print(f"ratio ours / Open3D (throughput, medians): {e2e:.2f}x with our whole call "
+              f"(BVH build included) against Open3D's queries alone; {qq:.2f}x queries against "
+              f"queries (best repetitions: {t_o3d.best / t_full.best:.2f}x and "
+              f"{t_o3d.best / t_query.best:.2f}x)")
+    else:
+        print("ratio ours / Open3D: not measured (Open3D not importable)")
+    print()
+    for note in notes:
+        print(f"- {note}")
+    if any(t.contended for t in [t_full, t_query] + ([t_o3d] if t_o3d else [])):
+        print("- † other processes kept at least a quarter of a core busy during every "
+              "repetition of this row: the machine was not quiet, rates are pessimistic")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

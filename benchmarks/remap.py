@@ -1,0 +1,251 @@
+"""Remap speed: numpy reference and the compiled fast path against the memory-bandwidth floor.
+
+Workload (as in the issue): 1M splats anchored to a 100k-face mesh (a bent and waved grid of
+250 × 200 quads, 50k vertices), uniformly random faces, barycentrics, normal offsets, rotations
+and scales; splats sorted by face as files store them (spec §Ordering), plus a shuffled copy to
+show what the order is worth. ``--quick``: 100k splats on a 10k-face grid.
+
+Floor. The bytes a remap must stream per splat (read the per-splat anchors, write the mean and
+the six covariance entries; per-face data stay in cache and are not counted) divided by the copy
+bandwidth measured in the same run with the same thread count (a numba parallel copy of a
+256 MiB float32 array; bytes read + bytes written). The fast path's ``local`` splat stream is
+4 (face) + 48 (b1, b2, d, L = R_l S_l) read + 12 + 24 written = 88 bytes; ``games`` is 16 + 36.
+The numpy reference reads the stored anchors (face 4, barycentrics 8, offset 4, rotation 16,
+scale 12 = 44 bytes; ``games`` 16) and writes float64 means and 3×3 covariances; its floor uses
+those bytes (float64 output, 96 bytes).
+
+Every timing is a median over repetitions in batches during which other processes used less
+than a quarter of a core (over all batches, marked †, when there were none).
+"""
+from __future__ import annotations
+
+import time
+import tracemalloc
+
+import numpy as np
+
+from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
+from gsverse_format.remap import remap as reference_remap
+from gsverse_format.remap_fast import FastRemapper, numba_available
+
+from .timing import measure
+
+TARGET_MS = 8.0
+
+
+def grid_mesh(nx: int, ny: int) -> TriangleMesh:
+    """A bent and waved grid of nx × ny quads (2 nx ny faces)."""
+    u, v = np.meshgrid(np.linspace(0, 2, nx + 1), np.linspace(0, 1.6, ny + 1), indexing="ij")
+    z = 0.1 * np.sin(3 * u) * np.cos(2 * v) + 0.3 * u * u
+    verts = np.stack([u, v, z], -1).reshape(-1, 3)
+    idx = np.arange((nx + 1) * (ny + 1)).reshape(nx + 1, ny + 1)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    return TriangleMesh(verts, faces)
+
+
+def random_anchors(mesh: TriangleMesh, n: int, profile: str, seed: int = 0):
+    """Random anchors, sorted by face."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(seed)
+    face = np.sort(rng.integers(0, mesh.face_count, n))
+    bary = rng.dirichlet([1, 1, 1], n)[:, 1:]
+    if profile == "games":
+        return GamesAnchors(face, bary, rng.uniform(0.2, 2.0, n))
+    law = profile.split("/")[1]
+    return LocalAnchors(face, bary, rng.normal(0, 0.003, n),
+                        Rotation.random(n, random_state=seed + 1).as_quat(),
+                        np.exp(rng.normal(-5, 0.5, (n, 3))), law)
+
+
+def deformed(mesh: TriangleMesh) -> np.ndarray:
+    v = mesh.vertices.astype(np.float64)
+    return (v * [1.5, 1.0, 1.0] + 0.05 * np.sin(4 * v[:, [1, 2, 0]])).astype(np.float32)
+
+
+_COPY = []
+
+
+def _copy_kernel():
+    if not _COPY:
+        from numba import njit, prange
+
+        @njit(parallel=True, cache=True)
+        def _copy(a, b):  # pragma: no cover - compiled
+            for i in prange(a.shape[0]):
+                b[i] = a[i]
+
+        _COPY.append(_copy)
+    return _COPY[0]
+
+
+def copy_bandwidth(threads: int, mib: int = 256, min_quiet: int = 0,
+                   max_wait_s: float = 0.0) -> tuple[float, dict]:
+    """GB/s of a numba parallel copy on ``threads`` threads ((read + write) / s)."""
+    import numba
+
+    _copy = _copy_kernel()
+    x = np.ones(mib * 2**20 // 4, np.float32)
+    y = np.empty_like(x)
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        t = measure(lambda: _copy(x, y), repeat=5, batches=3, retry_contended=3,
+                    min_quiet=min_quiet, max_wait_s=max_wait_s)
+    finally:
+        numba.set_num_threads(before)
+    return 2 * x.nbytes / t.median / 1e9, t.as_dict()
+
+
+def numpy_copy_bandwidth(mib: int = 256) -> float:
+    x = np.ones(mib * 2**20 // 4, np.float32)
+    y = np.empty_like(x)
+    t = measure(lambda: np.copyto(y, x), repeat=5, batches=3)
+    return 2 * x.nbytes / t.median / 1e9
+
+
+def _peak_bytes(fn) -> int:
+    tracemalloc.start()
+    tracemalloc.reset_peak()
+    try:
+        fn()
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def _row(name, impl, threads, n, timing, bytes_per_splat, bw, *, order="by face", check=None):
+    ms = timing.median * 1e3
+    floor_ms = bytes_per_splat * n / (bw * 1e9) * 1e3 if bw else float("nan")
+    return {"case": name, "impl": impl, "threads": threads, "order": order, "ms": ms,
+            "ms_per_1M": ms * 1e6 / n, "best_ms": timing.best * 1e3, "msplats_s": n / timing.median / 1e6,
+            "bytes_per_splat": bytes_per_splat, "floor_ms": floor_ms,
+            "floor_fraction": floor_ms / ms if ms else float("nan"),
+            "contended": timing.contended, "other_cores": timing.other_cores,
+            "own_cores": timing.own_cores, "check": check}
+
+
+def _accuracy(anchoring, vertices, out, ref=None):
+    ref = ref if ref is not None else reference_remap(anchoring, vertices)
+    cov = out.covariances()
+    rel = np.linalg.norm(cov - ref.covariances, axis=(1, 2)) / np.linalg.norm(ref.covariances, axis=(1, 2))
+    return {"max_mean_err": float(np.max(np.abs(out.means - ref.means))),
+            "max_cov_rel_err": float(np.max(rel))}
+
+
+def run(quick: bool = False, log=print) -> dict:
+    """Time every implementation; returns rows and the bandwidth figures."""
+    t_start = time.perf_counter()
+    result = {"rows": [], "notes": [], "target_ms": TARGET_MS}
+    nx, ny = (50, 100) if quick else (250, 200)
+    n = 100_000 if quick else 1_000_000
+    mesh = grid_mesh(nx, ny)
+    verts = deformed(mesh)
+    result.update(n_splats=n, n_faces=mesh.face_count, n_vertices=len(mesh.vertices))
+    log(f"remap: {n} splats, {mesh.face_count} faces")
+
+    have_numba = numba_available()
+    threads_all = 1
+    if have_numba:
+        import numba
+
+        threads_all = numba.config.NUMBA_NUM_THREADS
+        bw = {}
+        for th in sorted({1, threads_all}):
+            gbs, info = copy_bandwidth(th, 64 if quick else 256, 0 if quick else 3,
+                                       0 if quick else 120)
+            bw[th] = gbs
+            result.setdefault("bandwidth", []).append({"threads": th, "gb_s": gbs, **info})
+        result["numpy_copy_gb_s"] = numpy_copy_bandwidth(64 if quick else 256)
+    else:
+        result["notes"].append("numba is not importable: only the numpy reference was timed")
+        bw = {1: numpy_copy_bandwidth(64 if quick else 256)}
+        result["bandwidth"] = [{"threads": 1, "gb_s": bw[1], "kind": "numpy copyto"}]
+
+    ref_reps = 1 if quick else 2
+    for case in ("local/affine", "local/rigid", "games"):
+        anchors = random_anchors(mesh, n, case)
+        anchoring = Anchoring(mesh, anchors)
+        ref_bytes = (16 if case == "games" else 44) + 96
+        # numpy reference
+        holder = {}
+        t = measure(lambda: holder.__setitem__("r", reference_remap(anchoring, verts)),
+                    repeat=ref_reps, batches=1 if quick else 2, warmup=0)
+        ref = holder["r"]
+        result["rows"].append(_row(case, "numpy reference `remap` (float64, with rotations/scales)",
+                                   1, n, t, ref_bytes, bw.get(1)))
+        if case == "local/affine":
+            result["peak_numpy_remap_mb"] = _peak_bytes(lambda: reference_remap(anchoring, verts)) / 2**20
+        try:
+            from gsverse_format.remap import remap_moments
+        except ImportError:
+            remap_moments = None
+        if remap_moments is not None:
+            t = measure(lambda: remap_moments(anchoring, verts), repeat=ref_reps,
+                        batches=1 if quick else 2, warmup=1)
+            result["rows"].append(_row(case, "numpy `remap_moments` (float64, means + covariances)",
+                                       1, n, t, ref_bytes, bw.get(1)))
+        if not have_numba:
+            continue
+        t0 = time.perf_counter()
+        fast = FastRemapper(anchoring, backend="numba")
+        build_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        out = fast.remap(verts)
+        first_s = time.perf_counter() - t0
+        check = _accuracy(anchoring, verts, out, ref)
+        result["notes"].append(f"{case}: FastRemapper construction {build_s:.2f} s; first remap "
+                               f"(kernel compilation or cache load) {first_s:.2f} s")
+        for th in sorted({1, threads_all}):
+            numba.set_num_threads(th)
+            try:
+                reps = 10 if quick else 40
+                # The headline rows wait (up to a few minutes) for quiet moments on a busy machine.
+                t = measure(lambda: fast.remap(verts), repeat=reps, batches=3,
+                            retry_contended=1 if quick else 6, min_quiet=0 if quick else 3,
+                            max_wait_s=0 if quick else (240 if case == "local/affine" else 60))
+                result["rows"].append(_row(case, "fast path (numba, float32)", th, n, t,
+                                           fast.bytes_per_splat, bw[th], check=check))
+                tf = measure(lambda: fast.face_pass(verts), repeat=reps, batches=2,
+                             retry_contended=0 if quick else 2)
+                result["rows"][-1]["face_pass_ms"] = tf.median * 1e3
+                if case == "local/rigid":
+                    fast_r = FastRemapper(anchoring, backend="numba", rotations=True)
+                    fast_r.remap(verts)
+                    t = measure(lambda: fast_r.remap(verts), repeat=reps, batches=2,
+                                retry_contended=0 if quick else 2)
+                    result["rows"].append(_row(case, "fast path + rotations/scales", th, n, t,
+                                               fast_r.bytes_per_splat, bw[th]))
+                if case == "games":
+                    fast_g = FastRemapper(anchoring, backend="numba", rotations=True)
+                    fast_g.remap(verts)
+                    t = measure(lambda: fast_g.remap(verts), repeat=reps, batches=2,
+                                retry_contended=0 if quick else 2)
+                    result["rows"].append(_row(case, "fast path + rotations/scales", th, n, t,
+                                               fast_g.bytes_per_splat, bw[th]))
+            finally:
+                numba.set_num_threads(threads_all)
+        if case == "local/affine":
+            result["fast_buffers_mb"] = (fast._consts.nbytes + fast._face.nbytes + fast._table.nbytes
+                                         + out.means.nbytes + out.cov6.nbytes) / 2**20
+            result["peak_fast_remap_mb"] = _peak_bytes(lambda: fast.remap(verts)) / 2**20
+            # Random splat order: what face-sorted storage is worth.
+            perm = np.random.default_rng(5).permutation(n)
+            shuffled = FastRemapper(Anchoring(mesh, anchors.subset(perm)), backend="numba")
+            shuffled.remap(verts)
+            t = measure(lambda: shuffled.remap(verts), repeat=5 if quick else 10, batches=2,
+                        retry_contended=0 if quick else 2)
+            result["rows"].append(_row(case, "fast path (numba, float32)", threads_all, n, t,
+                                       fast.bytes_per_splat, bw[threads_all], order="random"))
+        del fast, out
+    result["seconds"] = time.perf_counter() - t_start
+    target = [r for r in result["rows"] if r["case"] == "local/affine" and r["impl"].startswith("fast path (")
+              and r["threads"] == threads_all and r["order"] == "by face"]
+    if target:
+        r = target[0]
+        # Per 1M splats (the quick run has fewer splats and a smaller mesh).
+        result["target_met"] = bool(r["ms_per_1M"] <= TARGET_MS) if not quick else None
+        result["headline"] = r
+    log(f"remap: done in {result['seconds']:.1f} s")
+    return result

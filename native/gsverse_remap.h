@@ -1,0 +1,699 @@
+/*
+ * gsverse_remap.h -- per-frame remap of GSVERSE_gaussian_splatting_mesh_anchor splats.
+ *
+ * Portable C99, header-only, no dependencies: it includes only the standard headers
+ * <math.h>, <stddef.h> and <stdint.h> (the last two are compiler-provided type headers),
+ * allocates nothing and keeps no global state. It compiles as C99 and as C++.
+ * Normative text: spec/README.md of gsverse-format (section numbers below refer to it).
+ *
+ * USAGE
+ *   In exactly one C or C++ file:
+ *       #define GSV_REMAP_IMPLEMENTATION
+ *       #include "gsverse_remap.h"
+ *   Everywhere else include it without the define (declarations only). Define
+ *   GSV_REMAP_STATIC as well to make every function static (one private copy per file).
+ *
+ *   Precision: internal arithmetic uses gsv_real, double by default (the spec's reference
+ *   precision). Compile with -DGSV_REAL=float for a float32 build: the code subtracts the
+ *   triangle's first corner before anything else (edges, centroid offsets) and adds it back
+ *   last, so large coordinates keep their accuracy; it passes the conformance suite.
+ *   Inputs and outputs are float, the types of the file and of GPU buffers.
+ *
+ *   Arrays are tightly packed: vertices float[3V], indices uint32_t[3F] (NULL when the anchor
+ *   primitive is not indexed: triangle f is then vertices 3f, 3f+1, 3f+2), per splat
+ *   face uint32_t[N], bary float[2N], offset float[N], rotation float[4N] (x, y, z, w),
+ *   scale float[3N], rho float[N]; outputs means float[3N], covariances float[6N] in the
+ *   order xx, xy, xz, yy, yz, zz, rotations float[4N] (x, y, z, w), scales float[3N].
+ *
+ *   local profile (once per asset, then every frame):
+ *       gsv_rest_face *rest = ...F entries...;   gsv_local_face *cur = ...F entries...;
+ *       gsv_prepare_rest(rest_vertices, indices, F, rest);
+ *       each frame:
+ *           gsv_local_faces(vertices, indices, F, rest, cur);              per face
+ *           gsv_local_splats(cur, N, face, bary, offset, rotation, scale,  per splat
+ *                            GSV_AFFINE or GSV_RIGID, means, cov6, NULL, NULL);
+ *   games profile (every frame):
+ *           gsv_games_faces(vertices, indices, F, gcur);
+ *           gsv_games_splats(gcur, N, face, bary, rho, means, cov6, rot, scl);
+ *
+ *   Rotation/scale outputs (optional, pass NULL to skip): rigid and games produce them
+ *   directly; for the affine law they come from an eigen-decomposition of the covariance
+ *   (gsv_cov_to_rot_scale). The covariance is the normative output; rotation/scale pairs
+ *   are not unique.
+ *
+ *   Reading anchors: gsv_read_floats()/gsv_read_uints() read glTF accessor bytes of any
+ *   component type (little-endian, with byteStride) and dequantize normalized integers;
+ *   gsv_normalize_quaternions() renormalizes dequantized quaternions;
+ *   gsv_anchor_accessor_allowed() says whether the spec allows an accessor layout, and
+ *   gsv_check_face_indices() whether all face indices are in range and gsv_all_finite()
+ *   whether float data hold no NaN or infinity: refuse the asset otherwise.
+ */
+#ifndef GSVERSE_REMAP_H
+#define GSVERSE_REMAP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifndef GSV_REAL
+#define GSV_REAL double
+#endif
+typedef GSV_REAL gsv_real;
+
+#ifdef GSV_REMAP_STATIC
+#if defined(__GNUC__) || defined(__clang__)
+#define GSV_API static __attribute__((unused))
+#else
+#define GSV_API static
+#endif
+#else
+#define GSV_API extern
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* glTF component types */
+enum {
+    GSV_BYTE = 5120, GSV_UNSIGNED_BYTE = 5121, GSV_SHORT = 5122,
+    GSV_UNSIGNED_SHORT = 5123, GSV_UNSIGNED_INT = 5125, GSV_FLOAT = 5126
+};
+/* deformation laws of the local profile */
+enum { GSV_AFFINE = 0, GSV_RIGID = 1 };
+/* anchor properties (for gsv_anchor_accessor_allowed) */
+enum {
+    GSV_PROP_FACE_INDEX = 0, GSV_PROP_BARYCENTRICS = 1, GSV_PROP_NORMAL_OFFSET = 2,
+    GSV_PROP_LOCAL_ROTATION = 3, GSV_PROP_LOCAL_SCALE = 4, GSV_PROP_RHO = 5
+};
+
+#define GSV_EPS_DEGENERATE 1e-6 /* regular iff a > eps * l^2 (spec Triangle frames) */
+#define GSV_GAMES_EPS 1e-8      /* GaMeS absolute epsilon, scene units */
+
+/* Local frame of one triangle (spec Triangle frames). r is row-major 3x3 whose columns are
+   t, b, n; c is the 2x2 edge matrix C row-major (c[0] c[1] / c[2] c[3]); area2 = a (0 for
+   degenerate triangles); regular = 1 for regular triangles. */
+typedef struct gsv_frame {
+    gsv_real r[9];
+    gsv_real c[4];
+    gsv_real area2;
+    int regular;
+} gsv_frame;
+
+/* Rest data of one face, local profile: C_r^-1 (row-major 2x2) and the rest doubled area;
+   faces degenerate at rest get C_r^-1 = identity and k = 1 (spec Faces degenerate at rest). */
+typedef struct gsv_rest_face {
+    gsv_real inv[4];
+    gsv_real area2;
+    int regular;
+} gsv_rest_face;
+
+/* Current state of one face, local profile: first corner o, edges e1 e2 (relative to o),
+   a_aff = R_c G (row-major 3x3, the affine world map of the frame coordinates),
+   r = R_c, k = size factor. */
+typedef struct gsv_local_face {
+    gsv_real o[3], e1[3], e2[3];
+    gsv_real a_aff[9];
+    gsv_real r[9];
+    gsv_real k;
+} gsv_local_face;
+
+/* Current state of one face, games profile: first corner, edges, frame R = [n | b1 | b2]
+   (row-major 3x3) and base scales s. */
+typedef struct gsv_games_face {
+    gsv_real o[3], e1[3], e2[3];
+    gsv_real r[9];
+    gsv_real base[3];
+} gsv_games_face;
+
+GSV_API void gsv_local_frame(const float v0[3], const float v1[3], const float v2[3],
+                             gsv_frame *out);
+GSV_API void gsv_games_frame(const float v0[3], const float v1[3], const float v2[3],
+                             gsv_real r[9], gsv_real base[3]);
+GSV_API void gsv_prepare_rest(const float *vertices, const uint32_t *indices, size_t face_count,
+                              gsv_rest_face *rest);
+GSV_API void gsv_local_faces(const float *vertices, const uint32_t *indices, size_t face_count,
+                             const gsv_rest_face *rest, gsv_local_face *cur);
+GSV_API void gsv_local_splats(const gsv_local_face *cur, size_t n, const uint32_t *face,
+                              const float *bary, const float *offset, const float *rotation,
+                              const float *scale, int law, float *means, float *cov6,
+                              float *rotations, float *scales);
+GSV_API void gsv_games_faces(const float *vertices, const uint32_t *indices, size_t face_count,
+                             gsv_games_face *cur);
+GSV_API void gsv_games_splats(const gsv_games_face *cur, size_t n, const uint32_t *face,
+                              const float *bary, const float *rho, float *means, float *cov6,
+                              float *rotations, float *scales);
+
+/* helpers */
+GSV_API void gsv_quat_to_matrix(const gsv_real q[4], gsv_real m[9]);
+GSV_API void gsv_matrix_to_quat(const gsv_real m[9], gsv_real q[4]);
+GSV_API void gsv_rot_scale_to_cov(const float q[4], const float s[3], float cov6[6]);
+GSV_API void gsv_cov_to_rot_scale(const float cov6[6], float q[4], float s[3]);
+GSV_API double gsv_dequantize(int32_t code, int component_type, int normalized);
+GSV_API int gsv_read_floats(const void *data, size_t stride, size_t count, int ncomp,
+                            int component_type, int normalized, float *out);
+GSV_API int gsv_read_uints(const void *data, size_t stride, size_t count,
+                           int component_type, uint32_t *out);
+GSV_API void gsv_normalize_quaternions(float *q, size_t count);
+GSV_API int gsv_anchor_accessor_allowed(int property, int ncomp, int component_type,
+                                        int normalized);
+GSV_API int gsv_check_face_indices(const uint32_t *face, size_t n, size_t face_count);
+GSV_API int gsv_all_finite(const float *values, size_t count);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* GSVERSE_REMAP_H */
+
+/* ======================================================================================= */
+#ifdef GSV_REMAP_IMPLEMENTATION
+#ifndef GSV_REMAP_IMPLEMENTED
+#define GSV_REMAP_IMPLEMENTED
+
+#include <math.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define GSV_SQRT(x) ((gsv_real)sqrt((double)(x)))
+
+static gsv_real gsv__dot(const gsv_real a[3], const gsv_real b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void gsv__cross(const gsv_real a[3], const gsv_real b[3], gsv_real out[3]) {
+    gsv_real x = a[1] * b[2] - a[2] * b[1];
+    gsv_real y = a[2] * b[0] - a[0] * b[2];
+    gsv_real z = a[0] * b[1] - a[1] * b[0];
+    out[0] = x; out[1] = y; out[2] = z;
+}
+
+static gsv_real gsv__norm(const gsv_real a[3]) { return GSV_SQRT(gsv__dot(a, a)); }
+
+static void gsv__scale(const gsv_real a[3], gsv_real s, gsv_real out[3]) {
+    out[0] = a[0] * s; out[1] = a[1] * s; out[2] = a[2] * s;
+}
+
+/* perp(t) = normalize(t x u), u the axis with the smallest |t_k| (lowest k on ties). */
+static void gsv__perp(const gsv_real t[3], gsv_real out[3]) {
+    gsv_real u[3] = {0, 0, 0};
+    int k = 0;
+    gsv_real ax = fabs((double)t[0]), ay = fabs((double)t[1]), az = fabs((double)t[2]);
+    if (ay < ax) k = 1;
+    if (az < (k == 0 ? ax : ay)) k = 2;
+    u[k] = 1;
+    gsv__cross(t, u, out);
+    gsv__scale(out, (gsv_real)1 / gsv__norm(out), out);
+}
+
+static void gsv__columns(const gsv_real c0[3], const gsv_real c1[3], const gsv_real c2[3],
+                         gsv_real m[9]) {
+    int i;
+    for (i = 0; i < 3; ++i) { m[3 * i] = c0[i]; m[3 * i + 1] = c1[i]; m[3 * i + 2] = c2[i]; }
+}
+
+static void gsv__edges(const float *v0, const float *v1, const float *v2, gsv_real o[3],
+                       gsv_real e1[3], gsv_real e2[3]) {
+    int i;
+    for (i = 0; i < 3; ++i) {
+        o[i] = (gsv_real)v0[i];
+        e1[i] = (gsv_real)v1[i] - (gsv_real)v0[i];
+        e2[i] = (gsv_real)v2[i] - (gsv_real)v0[i];
+    }
+}
+
+/* The local frame from edges (spec Triangle frames). */
+static void gsv__frame(const gsv_real e1[3], const gsv_real e2[3], gsv_frame *f) {
+    gsv_real e3[3], cr[3], t[3], b[3], n[3];
+    gsv_real l1, l2, l3, longest, a;
+    int i;
+    for (i = 0; i < 3; ++i) e3[i] = e2[i] - e1[i];
+    gsv__cross(e1, e2, cr);
+    a = gsv__norm(cr);
+    l1 = gsv__norm(e1); l2 = gsv__norm(e2); l3 = gsv__norm(e3);
+    longest = l1 > l2 ? l1 : l2;
+    if (l3 > longest) longest = l3;
+    f->c[0] = f->c[1] = f->c[2] = f->c[3] = 0;
+    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest * longest) {
+        gsv__scale(e1, (gsv_real)1 / l1, t);
+        gsv__scale(cr, (gsv_real)1 / a, n);
+        gsv__cross(n, t, b);
+        f->c[0] = l1;
+        f->c[1] = gsv__dot(e2, t);
+        f->c[3] = a / l1;
+        f->area2 = a;
+        f->regular = 1;
+    } else if (longest > 0) {
+        /* a segment: t along the longest of (e1, e2, e3), the first on ties */
+        const gsv_real *d = (l1 >= l2 && l1 >= l3) ? e1 : (l2 >= l3 ? e2 : e3);
+        gsv_real ld = (d == e1) ? l1 : (d == e2 ? l2 : l3);
+        gsv__scale(d, (gsv_real)1 / ld, t);
+        gsv__perp(t, n);
+        gsv__cross(n, t, b);
+        f->c[0] = gsv__dot(e1, t);
+        f->c[1] = gsv__dot(e2, t);
+        f->area2 = 0;
+        f->regular = 0;
+    } else {
+        t[0] = 1; t[1] = 0; t[2] = 0;
+        b[0] = 0; b[1] = 1; b[2] = 0;
+        n[0] = 0; n[1] = 0; n[2] = 1;
+        f->area2 = 0;
+        f->regular = 0;
+    }
+    gsv__columns(t, b, n, f->r);
+}
+
+GSV_API void gsv_local_frame(const float v0[3], const float v1[3], const float v2[3],
+                             gsv_frame *out) {
+    gsv_real o[3], e1[3], e2[3];
+    gsv__edges(v0, v1, v2, o, e1, e2);
+    gsv__frame(e1, e2, out);
+}
+
+static void gsv__games(const gsv_real e1[3], const gsv_real e2[3], gsv_real r[9],
+                       gsv_real base[3]) {
+    /* everything relative to v0: c - v0 = (e1 + e2) / 3, v1 - c = e1 - (c - v0),
+       w = v2 - c = e2 - (c - v0) */
+    gsv_real co[3], u1[3], w[3], b1[3], n[3], b2[3], cr[3], e3[3];
+    gsv_real lu, lw, a, l1, l2, l3, longest;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        co[i] = (e1[i] + e2[i]) / 3;
+        u1[i] = e1[i] - co[i];
+        w[i] = e2[i] - co[i];
+        e3[i] = e2[i] - e1[i];
+    }
+    gsv__cross(e1, e2, cr);
+    a = gsv__norm(cr);
+    l1 = gsv__norm(e1); l2 = gsv__norm(e2); l3 = gsv__norm(e3);
+    longest = l1 > l2 ? l1 : l2;
+    if (l3 > longest) longest = l3;
+    lu = gsv__norm(u1);
+    lw = gsv__norm(w);
+    if (lu > 0) gsv__scale(u1, (gsv_real)1 / lu, b1);
+    else if (lw > 0) gsv__scale(w, (gsv_real)1 / lw, b1);
+    else { b1[0] = 1; b1[1] = 0; b1[2] = 0; }
+    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest * longest) gsv__scale(cr, (gsv_real)1 / a, n);
+    else gsv__perp(b1, n);
+    gsv__cross(n, b1, b2);
+    base[0] = (gsv_real)GSV_GAMES_EPS;
+    base[1] = (lu + (gsv_real)GSV_GAMES_EPS) / 2;
+    base[2] = gsv__dot(w, b2) / 2;
+    gsv__columns(n, b1, b2, r);
+}
+
+GSV_API void gsv_games_frame(const float v0[3], const float v1[3], const float v2[3],
+                             gsv_real r[9], gsv_real base[3]) {
+    gsv_real o[3], e1[3], e2[3];
+    gsv__edges(v0, v1, v2, o, e1, e2);
+    gsv__games(e1, e2, r, base);
+}
+
+static void gsv__corners(const float *vertices, const uint32_t *indices, size_t f,
+                         const float **v0, const float **v1, const float **v2) {
+    size_t i0 = 3 * f, i1 = 3 * f + 1, i2 = 3 * f + 2;
+    if (indices) { i0 = indices[i0]; i1 = indices[i1]; i2 = indices[i2]; }
+    *v0 = vertices + 3 * i0; *v1 = vertices + 3 * i1; *v2 = vertices + 3 * i2;
+}
+
+GSV_API void gsv_prepare_rest(const float *vertices, const uint32_t *indices, size_t face_count,
+                              gsv_rest_face *rest) {
+    size_t f;
+    for (f = 0; f < face_count; ++f) {
+        const float *v0, *v1, *v2;
+        gsv_frame fr;
+        gsv_rest_face *out = rest + f;
+        gsv__corners(vertices, indices, f, &v0, &v1, &v2);
+        gsv_local_frame(v0, v1, v2, &fr);
+        out->regular = fr.regular;
+        out->area2 = fr.area2;
+        if (fr.regular) {
+            /* C_r = [[p, q], [0, h]] -> C_r^-1 = [[1/p, -q/(p h)], [0, 1/h]] */
+            gsv_real p = fr.c[0], q = fr.c[1], h = fr.c[3];
+            out->inv[0] = 1 / p; out->inv[1] = -q / (p * h);
+            out->inv[2] = 0; out->inv[3] = 1 / h;
+        } else {
+            out->inv[0] = 1; out->inv[1] = 0; out->inv[2] = 0; out->inv[3] = 1;
+        }
+    }
+}
+
+GSV_API void gsv_local_faces(const float *vertices, const uint32_t *indices, size_t face_count,
+                             const gsv_rest_face *rest, gsv_local_face *cur) {
+    size_t f;
+    for (f = 0; f < face_count; ++f) {
+        const float *v0, *v1, *v2;
+        gsv_frame fr;
+        gsv_local_face *out = cur + f;
+        gsv_real g[4];
+        int i, j;
+        gsv__corners(vertices, indices, f, &v0, &v1, &v2);
+        gsv__edges(v0, v1, v2, out->o, out->e1, out->e2);
+        gsv__frame(out->e1, out->e2, &fr);
+        /* size factor k = sqrt(a_c / a_r); 1 for faces degenerate at rest */
+        out->k = rest[f].regular ? GSV_SQRT(fr.area2 / rest[f].area2) : (gsv_real)1;
+        /* G = blockdiag(C_c C_r^-1, k); a_aff = R_c G */
+        g[0] = fr.c[0] * rest[f].inv[0] + fr.c[1] * rest[f].inv[2];
+        g[1] = fr.c[0] * rest[f].inv[1] + fr.c[1] * rest[f].inv[3];
+        g[2] = fr.c[2] * rest[f].inv[0] + fr.c[3] * rest[f].inv[2];
+        g[3] = fr.c[2] * rest[f].inv[1] + fr.c[3] * rest[f].inv[3];
+        for (i = 0; i < 3; ++i) {
+            for (j = 0; j < 2; ++j)
+                out->a_aff[3 * i + j] = fr.r[3 * i] * g[j] + fr.r[3 * i + 1] * g[2 + j];
+            out->a_aff[3 * i + 2] = fr.r[3 * i + 2] * out->k;
+        }
+        for (i = 0; i < 9; ++i) out->r[i] = fr.r[i];
+    }
+}
+
+GSV_API void gsv_quat_to_matrix(const gsv_real q[4], gsv_real m[9]) {
+    gsv_real len = GSV_SQRT(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    gsv_real x = 0, y = 0, z = 0, w = 1;
+    if (len > 0) { x = q[0] / len; y = q[1] / len; z = q[2] / len; w = q[3] / len; }
+    m[0] = 1 - 2 * (y * y + z * z); m[1] = 2 * (x * y - w * z);     m[2] = 2 * (x * z + w * y);
+    m[3] = 2 * (x * y + w * z);     m[4] = 1 - 2 * (x * x + z * z); m[5] = 2 * (y * z - w * x);
+    m[6] = 2 * (x * z - w * y);     m[7] = 2 * (y * z + w * x);     m[8] = 1 - 2 * (x * x + y * y);
+}
+
+GSV_API void gsv_matrix_to_quat(const gsv_real m[9], gsv_real q[4]) {
+    /* Shepperd: pivot on the largest of 4w^2, 4x^2, 4y^2, 4z^2; result with w >= 0 */
+    gsv_real tr = m[0] + m[4] + m[8];
+    gsv_real cand[4];
+    gsv_real s, len;
+    int i, k = 0;
+    cand[0] = 1 + 2 * m[0] - tr; cand[1] = 1 + 2 * m[4] - tr;
+    cand[2] = 1 + 2 * m[8] - tr; cand[3] = 1 + tr;
+    for (i = 1; i < 4; ++i) if (cand[i] > cand[k]) k = i;
+    s = 2 * GSV_SQRT(cand[k] > 0 ? cand[k] : 0);
+    if (s <= 0) { q[0] = q[1] = q[2] = 0; q[3] = 1; return; }
+    if (k == 3) {
+        q[0] = (m[7] - m[5]) / s; q[1] = (m[2] - m[6]) / s; q[2] = (m[3] - m[1]) / s; q[3] = s / 4;
+    } else if (k == 0) {
+        q[0] = s / 4; q[1] = (m[1] + m[3]) / s; q[2] = (m[2] + m[6]) / s; q[3] = (m[7] - m[5]) / s;
+    } else if (k == 1) {
+        q[0] = (m[1] + m[3]) / s; q[1] = s / 4; q[2] = (m[5] + m[7]) / s; q[3] = (m[2] - m[6]) / s;
+    } else {
+        q[0] = (m[2] + m[6]) / s; q[1] = (m[5] + m[7]) / s; q[2] = s / 4; q[3] = (m[3] - m[1]) / s;
+    }
+    len = GSV_SQRT(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (q[3] < 0) len = -len;
+    for (i = 0; i < 4; ++i) q[i] /= len;
+}
+
+/* cov6 = M M^T for a row-major 3x3 M */
+static void gsv__outer(const gsv_real m[9], float cov6[6]) {
+    static const int rs[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    int j;
+    for (j = 0; j < 6; ++j) {
+        const gsv_real *a = m + 3 * rs[j][0], *b = m + 3 * rs[j][1];
+        cov6[j] = (float)(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+    }
+}
+
+GSV_API void gsv_rot_scale_to_cov(const float q[4], const float s[3], float cov6[6]) {
+    gsv_real qq[4], r[9], m[9];
+    int i, j;
+    for (i = 0; i < 4; ++i) qq[i] = q[i];
+    gsv_quat_to_matrix(qq, r);
+    for (i = 0; i < 3; ++i) for (j = 0; j < 3; ++j) m[3 * i + j] = r[3 * i + j] * (gsv_real)s[j];
+    gsv__outer(m, cov6);
+}
+
+/* Symmetric 3x3 eigen-decomposition (cyclic Jacobi, double): a is destroyed, v gets the
+   eigenvectors as columns (row-major), d the eigenvalues. */
+static void gsv__jacobi(double a[9], double v[9], double d[3]) {
+    int sweep, p, q, i;
+    for (i = 0; i < 9; ++i) v[i] = (i % 4 == 0) ? 1.0 : 0.0;
+    for (sweep = 0; sweep < 64; ++sweep) {
+        double off = fabs(a[1]) + fabs(a[2]) + fabs(a[5]);
+        double diag = fabs(a[0]) + fabs(a[4]) + fabs(a[8]);
+        if (off <= 1e-300 || off <= 1e-17 * diag) break;
+        for (p = 0; p < 2; ++p) {
+            for (q = p + 1; q < 3; ++q) {
+                double apq = a[3 * p + q], app, aqq, theta, t, c, s;
+                int k;
+                if (apq == 0.0) continue;
+                app = a[3 * p + p]; aqq = a[3 * q + q];
+                theta = (aqq - app) / (2.0 * apq);
+                t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                c = 1.0 / sqrt(t * t + 1.0);
+                s = t * c;
+                for (k = 0; k < 3; ++k) {          /* A <- J^T A J */
+                    double akp = a[3 * k + p], akq = a[3 * k + q];
+                    a[3 * k + p] = c * akp - s * akq;
+                    a[3 * k + q] = s * akp + c * akq;
+                }
+                for (k = 0; k < 3; ++k) {
+                    double apk = a[3 * p + k], aqk = a[3 * q + k];
+                    a[3 * p + k] = c * apk - s * aqk;
+                    a[3 * q + k] = s * apk + c * aqk;
+                }
+                for (k = 0; k < 3; ++k) {          /* V <- V J */
+                    double vkp = v[3 * k + p], vkq = v[3 * k + q];
+                    v[3 * k + p] = c * vkp - s * vkq;
+                    v[3 * k + q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    d[0] = a[0]; d[1] = a[4]; d[2] = a[8];
+}
+
+GSV_API void gsv_cov_to_rot_scale(const float cov6[6], float q[4], float s[3]) {
+    double a[9], v[9], d[3], det;
+    gsv_real m[9], qq[4];
+    int i;
+    a[0] = cov6[0]; a[1] = cov6[1]; a[2] = cov6[2];
+    a[3] = cov6[1]; a[4] = cov6[3]; a[5] = cov6[4];
+    a[6] = cov6[2]; a[7] = cov6[4]; a[8] = cov6[5];
+    gsv__jacobi(a, v, d);
+    det = v[0] * (v[4] * v[8] - v[5] * v[7]) - v[1] * (v[3] * v[8] - v[5] * v[6])
+        + v[2] * (v[3] * v[7] - v[4] * v[6]);
+    if (det < 0) { v[2] = -v[2]; v[5] = -v[5]; v[8] = -v[8]; }   /* proper rotation */
+    for (i = 0; i < 9; ++i) m[i] = (gsv_real)v[i];
+    gsv_matrix_to_quat(m, qq);
+    for (i = 0; i < 4; ++i) q[i] = (float)qq[i];
+    for (i = 0; i < 3; ++i) s[i] = (float)sqrt(d[i] > 0 ? d[i] : 0.0);
+}
+
+GSV_API void gsv_local_splats(const gsv_local_face *cur, size_t n, const uint32_t *face,
+                              const float *bary, const float *offset, const float *rotation,
+                              const float *scale, int law, float *means, float *cov6,
+                              float *rotations, float *scales) {
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        const gsv_local_face *f = cur + face[i];
+        gsv_real b1 = bary[2 * i], b2 = bary[2 * i + 1], dk = (gsv_real)offset[i] * f->k;
+        gsv_real q[4], rl[9], l[9], m[9];
+        const gsv_real *a;
+        gsv_real ak[9];
+        int r, c, j;
+        /* mean = v0 + b1 e1 + b2 e2 + d k n: the small part first, the corner last */
+        for (j = 0; j < 3; ++j) {
+            gsv_real rel = b1 * f->e1[j] + b2 * f->e2[j] + dk * f->r[3 * j + 2];
+            means[3 * i + j] = (float)(f->o[j] + rel);
+        }
+        for (j = 0; j < 4; ++j) q[j] = rotation[4 * i + j];
+        gsv_quat_to_matrix(q, rl);
+        for (r = 0; r < 3; ++r)                    /* L = R_l S_l */
+            for (c = 0; c < 3; ++c) l[3 * r + c] = rl[3 * r + c] * (gsv_real)scale[3 * i + c];
+        if (law == GSV_RIGID) {                    /* A = k R_c */
+            for (j = 0; j < 9; ++j) ak[j] = f->k * f->r[j];
+            a = ak;
+        } else {
+            a = f->a_aff;                          /* A = R_c G */
+        }
+        for (r = 0; r < 3; ++r)                    /* M = A L */
+            for (c = 0; c < 3; ++c)
+                m[3 * r + c] = a[3 * r] * l[c] + a[3 * r + 1] * l[3 + c] + a[3 * r + 2] * l[6 + c];
+        gsv__outer(m, cov6 + 6 * i);
+        if (rotations && scales) {
+            if (law == GSV_RIGID) {                /* rotation R_c R_l, scales k s_l */
+                gsv_real rot[9], qo[4];
+                for (r = 0; r < 3; ++r)
+                    for (c = 0; c < 3; ++c)
+                        rot[3 * r + c] = f->r[3 * r] * rl[c] + f->r[3 * r + 1] * rl[3 + c]
+                                       + f->r[3 * r + 2] * rl[6 + c];
+                gsv_matrix_to_quat(rot, qo);
+                for (j = 0; j < 4; ++j) rotations[4 * i + j] = (float)qo[j];
+                for (j = 0; j < 3; ++j) scales[3 * i + j] = (float)(f->k * (gsv_real)scale[3 * i + j]);
+            } else {
+                gsv_cov_to_rot_scale(cov6 + 6 * i, rotations + 4 * i, scales + 3 * i);
+            }
+        }
+    }
+}
+
+GSV_API void gsv_games_faces(const float *vertices, const uint32_t *indices, size_t face_count,
+                             gsv_games_face *cur) {
+    size_t f;
+    for (f = 0; f < face_count; ++f) {
+        const float *v0, *v1, *v2;
+        gsv__corners(vertices, indices, f, &v0, &v1, &v2);
+        gsv__edges(v0, v1, v2, cur[f].o, cur[f].e1, cur[f].e2);
+        gsv__games(cur[f].e1, cur[f].e2, cur[f].r, cur[f].base);
+    }
+}
+
+GSV_API void gsv_games_splats(const gsv_games_face *cur, size_t n, const uint32_t *face,
+                              const float *bary, const float *rho, float *means, float *cov6,
+                              float *rotations, float *scales) {
+    size_t i;
+    for (i = 0; i < n; ++i) {
+        const gsv_games_face *f = cur + face[i];
+        gsv_real a1 = bary[2 * i], a2 = bary[2 * i + 1], sc[3], m[9];
+        int r, c, j;
+        /* mean = a0 v0 + a1 v1 + a2 v2 = v0 + a1 e1 + a2 e2 */
+        for (j = 0; j < 3; ++j) means[3 * i + j] = (float)(f->o[j] + (a1 * f->e1[j] + a2 * f->e2[j]));
+        for (j = 0; j < 3; ++j) {                  /* scale_j = max(rho s_j, 0) + eps */
+            gsv_real v = (gsv_real)rho[i] * f->base[j];
+            sc[j] = (v > 0 ? v : 0) + (gsv_real)GSV_GAMES_EPS;
+        }
+        for (r = 0; r < 3; ++r) for (c = 0; c < 3; ++c) m[3 * r + c] = f->r[3 * r + c] * sc[c];
+        gsv__outer(m, cov6 + 6 * i);
+        if (rotations && scales) {
+            gsv_real q[4];
+            gsv_matrix_to_quat(f->r, q);
+            for (j = 0; j < 4; ++j) rotations[4 * i + j] = (float)q[j];
+            for (j = 0; j < 3; ++j) scales[3 * i + j] = (float)sc[j];
+        }
+    }
+}
+
+/* ---------------------------------------------------------------- reading and checking */
+
+static uint32_t gsv__le(const unsigned char *p, int bytes) {
+    uint32_t v = 0;
+    int i;
+    for (i = bytes - 1; i >= 0; --i) v = (v << 8) | p[i];
+    return v;
+}
+
+GSV_API double gsv_dequantize(int32_t code, int component_type, int normalized) {
+    double v = (double)code;
+    if (!normalized) return v;
+    switch (component_type) {
+        case GSV_UNSIGNED_BYTE: return v / 255.0;
+        case GSV_UNSIGNED_SHORT: return v / 65535.0;
+        case GSV_BYTE: v /= 127.0; return v < -1.0 ? -1.0 : v;
+        case GSV_SHORT: v /= 32767.0; return v < -1.0 ? -1.0 : v;
+        default: return v;
+    }
+}
+
+GSV_API int gsv_read_floats(const void *data, size_t stride, size_t count, int ncomp,
+                            int component_type, int normalized, float *out) {
+    const unsigned char *base = (const unsigned char *)data;
+    size_t size, i;
+    int j;
+    switch (component_type) {
+        case GSV_BYTE: case GSV_UNSIGNED_BYTE: size = 1; break;
+        case GSV_SHORT: case GSV_UNSIGNED_SHORT: size = 2; break;
+        case GSV_UNSIGNED_INT: case GSV_FLOAT: size = 4; break;
+        default: return -1;
+    }
+    if (normalized && (component_type == GSV_FLOAT || component_type == GSV_UNSIGNED_INT))
+        return -1;
+    if (stride == 0) stride = size * (size_t)ncomp;
+    for (i = 0; i < count; ++i) {
+        for (j = 0; j < ncomp; ++j) {
+            const unsigned char *p = base + i * stride + (size_t)j * size;
+            uint32_t raw = gsv__le(p, (int)size);
+            int32_t code;
+            if (component_type == GSV_FLOAT) {
+                union { uint32_t u; float f; } pun;
+                pun.u = raw;
+                out[i * (size_t)ncomp + (size_t)j] = pun.f;
+                continue;
+            }
+            if (component_type == GSV_UNSIGNED_INT) {
+                out[i * (size_t)ncomp + (size_t)j] = (float)raw;
+                continue;
+            }
+            if (component_type == GSV_BYTE) code = (int32_t)(raw ^ 0x80u) - 0x80;
+            else if (component_type == GSV_SHORT) code = (int32_t)(raw ^ 0x8000u) - 0x8000;
+            else code = (int32_t)raw;
+            out[i * (size_t)ncomp + (size_t)j] =
+                (float)gsv_dequantize(code, component_type, normalized);
+        }
+    }
+    return 0;
+}
+
+GSV_API int gsv_read_uints(const void *data, size_t stride, size_t count,
+                           int component_type, uint32_t *out) {
+    const unsigned char *base = (const unsigned char *)data;
+    size_t size, i;
+    switch (component_type) {
+        case GSV_UNSIGNED_BYTE: size = 1; break;
+        case GSV_UNSIGNED_SHORT: size = 2; break;
+        case GSV_UNSIGNED_INT: size = 4; break;
+        default: return -1;
+    }
+    if (stride == 0) stride = size;
+    for (i = 0; i < count; ++i) out[i] = gsv__le(base + i * stride, (int)size);
+    return 0;
+}
+
+GSV_API void gsv_normalize_quaternions(float *q, size_t count) {
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        float *p = q + 4 * i;
+        double len = sqrt((double)p[0] * p[0] + (double)p[1] * p[1] + (double)p[2] * p[2]
+                          + (double)p[3] * p[3]);
+        if (len > 0) {
+            p[0] = (float)(p[0] / len); p[1] = (float)(p[1] / len);
+            p[2] = (float)(p[2] / len); p[3] = (float)(p[3] / len);
+        } else {
+            p[0] = p[1] = p[2] = 0; p[3] = 1;
+        }
+    }
+}
+
+GSV_API int gsv_anchor_accessor_allowed(int property, int ncomp, int component_type,
+                                        int normalized) {
+    int ct = component_type, nz = normalized ? 1 : 0;
+    switch (property) {
+        case GSV_PROP_FACE_INDEX:
+            return ncomp == 1 && !nz && (ct == GSV_UNSIGNED_BYTE || ct == GSV_UNSIGNED_SHORT
+                                         || ct == GSV_UNSIGNED_INT);
+        case GSV_PROP_BARYCENTRICS:
+            return ncomp == 2 && ((ct == GSV_FLOAT && !nz)
+                                  || (nz && (ct == GSV_UNSIGNED_BYTE || ct == GSV_UNSIGNED_SHORT)));
+        case GSV_PROP_NORMAL_OFFSET:
+        case GSV_PROP_RHO:
+            return ncomp == 1 && ct == GSV_FLOAT && !nz;
+        case GSV_PROP_LOCAL_ROTATION:
+            return ncomp == 4 && ((ct == GSV_FLOAT && !nz)
+                                  || (nz && (ct == GSV_BYTE || ct == GSV_SHORT)));
+        case GSV_PROP_LOCAL_SCALE:
+            return ncomp == 3 && ((ct == GSV_FLOAT && !nz) || ct == GSV_UNSIGNED_BYTE
+                                  || ct == GSV_UNSIGNED_SHORT);
+        default:
+            return 0;
+    }
+}
+
+GSV_API int gsv_check_face_indices(const uint32_t *face, size_t n, size_t face_count) {
+    size_t i;
+    for (i = 0; i < n; ++i) if ((size_t)face[i] >= face_count) return 0;
+    return 1;
+}
+
+GSV_API int gsv_all_finite(const float *values, size_t count) {
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        float v = values[i];
+        if (v != v || v - v != 0.0f) return 0;   /* NaN, or infinity (inf - inf is NaN) */
+    }
+    return 1;
+}
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* GSV_REMAP_IMPLEMENTED */
+#endif /* GSV_REMAP_IMPLEMENTATION */

@@ -1,0 +1,281 @@
+"""The compiled nearest-triangle search equals the numpy reference bit for bit.
+
+Faces (including the smallest-index tie rule), distances, closest points and barycentrics must
+be identical to ``nearest_triangles(..., method="numpy")``, and both must be the brute-force
+minimum (``check_result`` from ``test_nearest``; the extended-precision comparison of the
+kernel itself lives in ``test_nearest``).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from gsverse_format import nearest as nt                                  # noqa: E402
+from gsverse_format import nearest_fast as nf                             # noqa: E402
+from gsverse_format.nearest import closest_points_on_triangles, nearest_triangles  # noqa: E402
+
+from test_nearest import bumpy_icosphere, check_result, nasty_mesh, query_points  # noqa: E402
+
+FIELDS = ("face", "distance", "closest", "barycentric")
+
+
+def both(points, vertices, faces, **kw):
+    """Run both implementations and require identical results; returns the compiled one."""
+    ref = nearest_triangles(points, vertices, faces, method="numpy", **kw)
+    fast = nearest_triangles(points, vertices, faces, method="numba", **kw)
+    for name in FIELDS:
+        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+    assert fast.face.dtype == np.int64 and fast.distance.dtype == np.float64
+    return fast
+
+
+# --------------------------------------------------------------------------- kernel
+
+def test_face_records_equal_reference_table():
+    v, f = nasty_mesh(seed=1)
+    rec = np.empty((len(f), nf._NREC))
+    nf._records(v, f, np.arange(len(f)), rec)
+    table = nt._face_table(v[f[:, 0]], v[f[:, 1]], v[f[:, 2]])
+    columns = list(range(9)) + list(range(12, 19))       # a, ab, ac, e_v, e_w, degenerate flag
+    np.testing.assert_array_equal(rec, table[columns].T)
+
+
+@pytest.fixture(scope="module")
+def pairwise():
+    """Compiled pairwise kernel: (closest, barycentric, distance) like the reference's."""
+    from numba import njit
+
+    @njit(cache=False)
+    def run(rec, p, out):
+        for i in range(p.shape[0]):
+            r = rec[i]
+            v, w, d2 = nf._closest(r, p[i, 0], p[i, 1], p[i, 2])
+            out[i, 0] = r[0] + v * r[3] + w * r[6]
+            out[i, 1] = r[1] + v * r[4] + w * r[7]
+            out[i, 2] = r[2] + v * r[5] + w * r[8]
+            out[i, 3] = max(1.0 - v - w, 0.0)
+            out[i, 4] = v
+            out[i, 5] = w
+            out[i, 6] = np.sqrt(d2)
+
+    def kernel(p, a, b, c):
+        m = len(p)
+        V = np.concatenate([a, b, c])
+        F = np.column_stack([np.arange(m), m + np.arange(m), 2 * m + np.arange(m)])
+        rec = np.empty((m, nf._NREC))
+        nf._records(V, F, np.arange(m), rec)
+        out = np.empty((m, 7))
+        run(rec, np.ascontiguousarray(p, dtype=np.float64), out)
+        return out[:, 0:3], out[:, 3:6], out[:, 6]
+
+    return kernel
+
+
+def test_kernel_bit_identical(pairwise):
+    rng = np.random.default_rng(2)
+    m = 6000
+    a, b, c = (rng.normal(size=(m, 3)) for _ in range(3))
+    # slivers, segments (collinear corners in every order), points, and shared corners
+    k = m // 6
+    c[:k] = a[:k] + rng.uniform(-0.5, 1.5, (k, 1)) * (b[:k] - a[:k]) + \
+        10.0 ** rng.uniform(-9, -3, (k, 1)) * rng.normal(size=(k, 3))
+    c[k:2 * k] = a[k:2 * k] + rng.uniform(-1, 2, (k, 1)) * (b[k:2 * k] - a[k:2 * k])
+    a[2 * k:3 * k] = b[2 * k:3 * k] + 0.3 * (c[2 * k:3 * k] - b[2 * k:3 * k])
+    b[3 * k:3 * k + 50] = c[3 * k:3 * k + 50] = a[3 * k:3 * k + 50]
+    b[4 * k:4 * k + 50] = a[4 * k:4 * k + 50]
+    p = 2.0 * rng.normal(size=(m, 3))
+    p[5 * k:] = a[5 * k:] + rng.uniform(0, 1, (m - 5 * k, 1)) * (b[5 * k:] - a[5 * k:])  # on edges
+    ref = closest_points_on_triangles(p, a, b, c)
+    got = pairwise(p, a, b, c)
+    for r, g in zip(ref, got):
+        np.testing.assert_array_equal(g, r)
+
+
+# --------------------------------------------------------------------------- hierarchy
+
+def test_float32_outward_rounding():
+    from numba import njit
+
+    @njit(cache=False)
+    def run(x, lo, hi):
+        for i in range(x.shape[0]):
+            lo[i] = nf._f32_down(x[i])
+            hi[i] = nf._f32_up(x[i])
+
+    rng = np.random.default_rng(28)
+    x = np.concatenate([rng.normal(size=20000) * 10.0 ** rng.uniform(-45, 39, 20000),
+                        [0.0, -0.0, 1e-46, -1e-46, 3.5e38, -3.5e38, 1e300, -1e300, 1.0, 2.0, 0.5]])
+    x = np.concatenate([x, np.float32(x[:5000]).astype(np.float64)])        # exact float32s
+    lo, hi = np.empty(len(x), np.float32), np.empty(len(x), np.float32)
+    with np.errstate(over="ignore"):
+        run(x, lo, hi)
+        assert np.all(lo.astype(np.float64) <= x) and np.all(hi.astype(np.float64) >= x)
+        near = np.float32(x)
+        exact = near.astype(np.float64) == x
+        assert np.all(lo[exact] == near[exact]) and np.all(hi[exact] == near[exact])
+        finite = np.abs(x) < 3e38
+        # at most two float32 steps away from the nearest float32
+        step = np.spacing(np.abs(near[finite])).astype(np.float64)
+        assert np.all(near[finite] - lo[finite].astype(np.float64) <= 2 * step + 1e-45)
+        assert np.all(hi[finite].astype(np.float64) - near[finite] <= 2 * step + 1e-45)
+
+
+@pytest.mark.parametrize("n_faces", [1, 4, 5, 9, 130, 1280])
+def test_tree_bounds_contain_their_triangles(n_faces):
+    """White-box check of the certificate: child, face and slab bounds hold their corners."""
+    v, f = bumpy_icosphere(3, seed=26)
+    f = f[np.random.default_rng(27).permutation(len(f))[:n_faces]]
+    idx = np.arange(len(f))
+    tree = nf.build_tree(v, f, idx)
+    np.testing.assert_array_equal(np.sort(tree.face), idx)
+    corners = v[f[tree.face]]                                   # (F, 3, 3) in tree order
+    lo, hi = corners.min(axis=1), corners.max(axis=1)
+    L = nf._LEAF
+    for j in range(len(tree.slab)):
+        c = corners[j * L:(j + 1) * L].reshape(-1, 3)
+        n, h = tree.slab[j, :3], c @ tree.slab[j, :3]
+        assert np.all(h >= tree.slab[j, 3] - 1e-12) and np.all(h <= tree.slab[j, 4] + 1e-12)
+        assert abs(np.linalg.norm(n) - 1) < 1e-12
+    assert tree.scale == np.abs(v[f]).max()
+
+    def span(ref):                                              # face positions below a node
+        if ref < 0:
+            j = -ref - 1
+            return j * L, min(j * L + L, len(f))
+        return span(tree.child[ref, 0])[0], span(tree.child[ref, 1])[1]
+
+    seen = []
+    stack = [tree.root]
+    while stack:
+        ref = stack.pop()
+        if ref < 0:
+            seen.append(span(ref))
+            continue
+        for side in range(2):
+            a, b = span(tree.child[ref, side])
+            box = tree.cbox[ref, 6 * side:6 * side + 6]
+            assert np.all(box[:3] <= lo[a:b].min(axis=0)) and np.all(box[3:] >= hi[a:b].max(axis=0))
+            stack.append(tree.child[ref, side])
+    assert sorted(seen) == [(j * L, min(j * L + L, len(f))) for j in range(len(tree.slab))]
+
+
+# --------------------------------------------------------------------------- search
+
+def test_icosphere_equals_reference():
+    v, f = bumpy_icosphere(3, seed=4)
+    p = query_points(v, f, 160, seed=5)
+    check_result(both(p, v, f), p, v, f, reference=False)
+
+
+@pytest.mark.parametrize("seed", [6, 30])
+def test_nasty_mesh_equals_reference(seed):
+    """Slivers, huge, zero-area and duplicated faces; near, far and on-surface points."""
+    v, f = nasty_mesh(seed=seed)
+    p = query_points(v, f, 240, seed=seed + 1)
+    res = both(p, v, f)
+    check_result(res, p, v, f, reference=False)
+    again = nearest_triangles(p, v, f, method="numba", chunk=37)
+    for name in FIELDS:
+        np.testing.assert_array_equal(getattr(again, name), getattr(res, name))
+
+
+def test_offset_and_scaled_mesh():
+    """Tiny triangles far from the origin: the float32 boxes are coarser than the faces."""
+    v, f = bumpy_icosphere(2, seed=8)
+    v = v * 1e-3 + np.array([1e5, -2e4, 5e3])
+    p = query_points(v, f, 300, seed=9)
+    check_result(both(p, v, f), p, v, f, reference=False)
+
+
+def test_ties_and_duplicates():
+    up = [[-1.0, -1.0, 1.0], [1.0, -1.0, 1.0], [0.0, 1.0, 1.0]]
+    down = [[-1.0, -1.0, -1.0], [1.0, -1.0, -1.0], [0.0, 1.0, -1.0]]
+    v = np.array(up + down + [[50.0, 50, 50], [51.0, 50, 50], [50.0, 51, 50]])
+    origin = np.zeros((1, 3))
+    for faces, expect in [([[0, 1, 2], [3, 4, 5]], 0), ([[3, 4, 5], [0, 1, 2]], 0),
+                          ([[6, 7, 8], [3, 4, 5], [0, 1, 2]], 1)]:
+        res = both(origin, v, np.array(faces))
+        assert res.face[0] == expect and res.distance[0] == 1.0
+    v, f = bumpy_icosphere(2, seed=10)
+    rng = np.random.default_rng(11)
+    f = np.concatenate([f, f, f])[rng.permutation(3 * len(f))]
+    p = np.concatenate([query_points(v, f, 120, seed=12), v, 0.5 * (v[f[:200, 0]] + v[f[:200, 1]])])
+    res = both(p, v, f)
+    check_result(res, p, v, f, reference=False)
+    first = {tuple(t): i for i, t in reversed(list(enumerate(map(tuple, f))))}
+    assert all(first[tuple(f[i])] == i for i in res.face)
+
+
+def test_exclude():
+    v, f = nasty_mesh(seed=13)
+    p = query_points(v, f, 200, seed=14)
+    first = nearest_triangles(p, v, f, method="numba")
+    exclude = np.zeros(len(f), bool)
+    exclude[first.face[::2]] = True
+    exclude[np.random.default_rng(15).choice(len(f), len(f) // 3, replace=False)] = True
+    check_result(both(p, v, f, exclude=exclude), p, v, f, exclude, reference=False)
+    only = np.ones(len(f), bool)
+    only[17] = False
+    res = both(p, v, f, exclude=only)
+    assert np.all(res.face == 17)
+    with pytest.raises(ValueError):
+        nearest_triangles(p, v, f, exclude=np.ones(len(f), bool), method="numba")
+
+
+@pytest.mark.parametrize("faces", [[[0, 1, 2]],
+                                   [[0, 1, 3], [1, 1, 1], [4, 3, 0], [2, 2, 4]],
+                                   [[0, 1, 2], [1, 3, 2], [0, 3, 4], [2, 4, 1], [4, 4, 4]]])
+def test_tiny_and_degenerate_meshes(faces):
+    """A single leaf as the root, zero-area faces only, and a two-leaf tree."""
+    rng = np.random.default_rng(20)
+    p = rng.normal(scale=4, size=(300, 3))
+    v = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]])
+    f = np.array(faces)
+    check_result(both(p, v, f), p, v, f)
+
+
+def test_far_points_and_large_meshes_of_many_leaves():
+    v, f = bumpy_icosphere(4, seed=21, bump=0.3)
+    rng = np.random.default_rng(22)
+    p = np.concatenate([rng.normal(scale=1e3, size=(50, 3)), 0.01 * rng.normal(size=(50, 3)),
+                        query_points(v, f, 400, seed=23)])
+    both(p, v, f)
+
+
+def test_empty_points_progress_and_validation():
+    v, f = bumpy_icosphere(1, seed=18)
+    calls = []
+    res = nearest_triangles(np.zeros((0, 3)), v, f, method="numba",
+                            progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(0, 0)] and res.face.shape == (0,) and res.closest.shape == (0, 3)
+    p = np.random.default_rng(19).normal(size=(10, 3))
+    calls.clear()
+    nearest_triangles(p, v, f, chunk=4, method="numba", progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(4, 10), (8, 10), (10, 10)]
+    for bad in (dict(faces=np.zeros((0, 3), np.int64)), dict(points=p[:, :2]),
+                dict(faces=f + len(v)), dict(points=np.full((1, 3), np.nan))):
+        args = dict(points=p, vertices=v, faces=f) | bad
+        with pytest.raises(ValueError):
+            nearest_triangles(**args, method="numba")
+    with pytest.raises(ValueError):
+        nearest_triangles(p, v, f, method="fortran")
+
+
+def test_dispatch(monkeypatch):
+    v, f = bumpy_icosphere(1, seed=24)
+    p = np.random.default_rng(25).normal(size=(20, 3))
+    used = []
+    real = nf.build_tree
+    monkeypatch.setattr(nf, "build_tree", lambda *a: used.append(1) or real(*a))
+    nearest_triangles(p, v, f)
+    assert used == [1]                                   # auto: compiled when numba imports
+    monkeypatch.setenv("GSVERSE_NO_NUMBA", "1")
+    nearest_triangles(p, v, f)
+    assert used == [1]                                   # the environment forces the reference
+    nearest_triangles(p, v, f, method="numba")
+    assert used == [1, 1]                                # an explicit method wins
+    monkeypatch.setenv("GSVERSE_NO_NUMBA", "0")
+    nearest_triangles(p, v, f)
+    assert used == [1, 1, 1]

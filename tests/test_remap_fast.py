@@ -1,0 +1,194 @@
+"""The fast remap agrees with the float64 reference within the stated float32 bounds.
+
+Bounds (``gsverse_format.remap_fast.float32_error_bounds``, u = 2⁻²⁴):
+mean ``16 u (|v0| + |b1||e1| + |b2||e2| + |d| k)``; ``local`` covariance ``64 u ‖A‖_F² Σ s_l²``;
+``games`` covariance ``64 u Σ scale²`` (Frobenius norms, per splat).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gsverse_format import remap_fast as rf
+from gsverse_format.binding import bind_local
+from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
+from gsverse_format.remap import remap
+
+from helpers import bumpy_sphere, random_rotation, surface_splats
+
+needs_numba = pytest.mark.skipif(not rf.numba_available(), reason="numba not installed")
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return bumpy_sphere(2, seed=5)
+
+
+@pytest.fixture(scope="module")
+def anchorings(mesh):
+    splats = surface_splats(mesh, 4000, seed=6, offset=0.05)
+    out = {}
+    for law in ("affine", "rigid"):
+        anchors = bind_local(splats, mesh, deformation=law).anchors
+        order = np.argsort(anchors.face_index, kind="stable")      # sorted by face, as files are
+        out[law] = Anchoring(mesh, anchors.subset(order))
+    rng = np.random.default_rng(7)
+    alpha = rng.dirichlet([1, 1, 1], 3000)
+    out["games"] = Anchoring(mesh, GamesAnchors(rng.integers(0, mesh.face_count, 3000),
+                                                alpha[:, 1:], rng.uniform(0.2, 3.0, 3000)))
+    return out
+
+
+def _deformations(mesh: TriangleMesh):
+    """Named current-vertex arrays: smooth, stretched, compressed, offset, degenerate, inverted."""
+    v = mesh.vertices.astype(np.float64)
+    rng = np.random.default_rng(11)
+    out = {
+        "rest": v,
+        "noisy_affine": v @ (random_rotation(3) * [1.7, 0.6, 1.1]).T + rng.normal(0, 0.03, v.shape),
+        "stretch_10x": v * [10.0, 1.0, 1.0],
+        "compress_0.1x": v * [1.0, 0.1, 1.0],
+        "offset_1e5": v + 1e5,
+        "twist": _twist(v, 2.0),
+    }
+    collapse = v.copy()
+    collapse[: len(v) // 3] = 0.0                 # many faces become segments or points
+    out["collapse"] = collapse
+    inverted = v.copy()
+    inverted[:, 2] *= -1.0                       # every triangle folds over
+    out["inverted"] = inverted
+    return out
+
+
+def _twist(v: np.ndarray, turns: float) -> np.ndarray:
+    ang = turns * np.pi * (v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1])
+    c, s = np.cos(ang), np.sin(ang)
+    return np.stack([c * v[:, 0] - s * v[:, 2], v[:, 1], s * v[:, 0] + c * v[:, 2]], axis=1)
+
+
+def _check_against_reference(anchoring, vertices, out):
+    ref = remap(anchoring, vertices)
+    mean_bound, cov_bound = rf.float32_error_bounds(anchoring, vertices)
+    mean_err = np.linalg.norm(out.means.astype(np.float64) - ref.means, axis=1)
+    cov_err = np.linalg.norm(out.covariances() - ref.covariances, axis=(1, 2))
+    assert np.all(np.isfinite(out.means)) and np.all(np.isfinite(out.cov6))
+    assert np.all(mean_err <= mean_bound), float(np.max(mean_err / mean_bound))
+    assert np.all(cov_err <= cov_bound), float(np.max(cov_err / cov_bound))
+    return ref
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", ["affine", "rigid", "games"])
+def test_fast_matches_reference_on_deformed_meshes(mesh, anchorings, kind):
+    anchoring = anchorings[kind]
+    fast = rf.FastRemapper(anchoring, rotations=True, backend="numba")
+    plain = rf.FastRemapper(anchoring, backend="numba")
+    assert plain.fused == (kind != "games") and fast.fused == (kind == "affine")
+    for name, vertices in _deformations(mesh).items():
+        out = fast.remap(vertices)
+        ref = _check_against_reference(anchoring, vertices, out)
+        # The fused single pass (sorted splats, no rotations) gives the same bits.
+        single = plain.remap(vertices)
+        assert np.array_equal(single.means, out.means) and np.array_equal(single.cov6, out.cov6)
+        if name in ("stretch_10x", "compress_0.1x", "noisy_affine", "rest"):
+            rel = np.linalg.norm(out.covariances() - ref.covariances, axis=(1, 2)) / \
+                np.linalg.norm(ref.covariances, axis=(1, 2))
+            assert np.max(rel) <= 1e-5, (name, float(np.max(rel)))
+        if kind != "affine":
+            qd = np.minimum(np.linalg.norm(out.rotations - ref.rotations, axis=1),
+                            np.linalg.norm(out.rotations + ref.rotations, axis=1))
+            assert np.max(qd) <= 1e-6, (name, float(np.max(qd)))
+            assert np.allclose(np.linalg.norm(out.rotations, axis=1), 1.0, atol=1e-6)
+            assert np.all(out.rotations[:, 3] >= 0.0)
+            assert np.allclose(out.scales, ref.scales, rtol=1e-6, atol=1e-30), name
+
+
+@needs_numba
+def test_degenerate_rest_faces_and_quantized_anchors():
+    # Face 1 is degenerate at rest (collinear corners): the spec's rule C_r⁻¹ = I, k = 1.
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], np.float32)
+    mesh = TriangleMesh(v, np.array([[0, 1, 2], [1, 3, 4]]))
+    rng = np.random.default_rng(3)
+    n = 200
+    q = rng.normal(size=(n, 4))
+    q = np.round(q / np.linalg.norm(q, axis=1, keepdims=True) * 32767) / 32767  # SHORT normalized
+    bary = np.round(rng.uniform(0, 1, (n, 2)) * 65535) / 65535                 # USHORT normalized
+    anchors = LocalAnchors(rng.integers(0, 2, n), bary, rng.normal(0, 0.1, n), q,
+                           rng.uniform(0.01, 0.2, (n, 3)))
+    for law in ("affine", "rigid"):
+        anchors.deformation = law
+        anchoring = Anchoring(mesh, anchors)
+        fast = rf.FastRemapper(anchoring, rotations=True, backend="numba")
+        cur = v * [3.0, 0.5, 1.0] + [0.0, 0.0, 0.25]
+        _check_against_reference(anchoring, cur, fast.remap(cur))
+        _check_against_reference(anchoring, None, fast.remap())
+
+
+@needs_numba
+def test_face_order_thread_count_and_dtype_do_not_change_results(mesh, anchorings):
+    import numba
+
+    anchoring = anchorings["affine"]
+    vertices = _deformations(mesh)["noisy_affine"]
+    fast = rf.FastRemapper(anchoring, backend="numba")
+    assert fast.fused
+    first = fast.remap(vertices).copy()
+    again = fast.remap(vertices)
+    assert again is fast.remap(vertices)                      # the buffers are reused
+    assert np.array_equal(first.means, again.means) and np.array_equal(first.cov6, again.cov6)
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        single = fast.remap(vertices).copy()
+    finally:
+        numba.set_num_threads(threads)
+    assert np.array_equal(first.means, single.means) and np.array_equal(first.cov6, single.cov6)
+    # Any splat order gives the same per-splat results.
+    perm = np.random.default_rng(0).permutation(len(anchoring.anchors))
+    unsorted = rf.FastRemapper(Anchoring(anchoring.mesh, anchoring.anchors.subset(perm)),
+                               backend="numba")
+    assert not unsorted.fused                                  # the two-pass path
+    shuffled = unsorted.remap(vertices)
+    assert np.array_equal(shuffled.means, first.means[perm])
+    assert np.array_equal(shuffled.cov6, first.cov6[perm])
+    # float32 vertices: the bound still holds (the reference sees the same float32 input).
+    v32 = vertices.astype(np.float32)
+    _check_against_reference(anchoring, v32, fast.remap(v32))
+    # A caller-provided output set.
+    mine = fast.allocate()
+    assert fast.remap(vertices, out=mine) is mine
+    assert np.array_equal(mine.cov6, first.cov6)
+
+
+def test_numpy_backend_matches_reference(mesh, anchorings, monkeypatch):
+    vertices = _deformations(mesh)["noisy_affine"]
+    for kind in ("affine", "rigid", "games"):
+        anchoring = anchorings[kind]
+        out = rf.FastRemapper(anchoring, rotations=True, backend="numpy").remap(vertices)
+        ref = remap(anchoring, vertices)
+        assert np.array_equal(out.means, ref.means.astype(np.float32))
+        assert np.allclose(out.covariances(), ref.covariances, rtol=1e-6, atol=1e-12)
+    monkeypatch.setenv("GSVERSE_REMAP_BACKEND", "numpy")
+    assert rf.FastRemapper(anchorings["games"]).backend == "numpy"
+    out = rf.remap_auto(anchorings["games"], vertices)
+    assert out.means.dtype == np.float32 and out.cov6.shape == (len(anchorings["games"].anchors), 6)
+
+
+def test_auto_selects_numba_when_importable(anchorings):
+    expected = "numba" if rf.numba_available() else "numpy"
+    assert rf.FastRemapper(anchorings["rigid"]).backend == expected
+
+
+def test_bad_input_is_rejected(anchorings):
+    fast = rf.FastRemapper(anchorings["affine"], backend="numpy")
+    with pytest.raises(ValueError, match="vertices of shape"):
+        fast.remap(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="backend"):
+        rf.FastRemapper(anchorings["affine"], backend="cuda")
+
+
+def test_cov6_round_trip():
+    m = np.random.default_rng(0).normal(size=(5, 3, 3))
+    m = m @ np.swapaxes(m, 1, 2)
+    assert np.allclose(rf.cov6_to_matrix(rf.matrix_to_cov6(m)), m)
+    assert rf.COV6_ORDER == ("xx", "xy", "xz", "yy", "yz", "zz")

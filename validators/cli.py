@@ -1,0 +1,174 @@
+"""``gsverse-validate FILE...``: validate glTF/GLB splat assets.
+
+Exit status: 0 when no file has errors, 1 when some file has errors, 2 for bad usage or a file
+that could not be read at all. Severities can be raised, lowered or ignored per code
+(``--severity CODE=LEVEL``, ``--ignore CODE``, or a ``--config`` JSON file in the style of the
+Khronos glTF-Validator: ``{"severityOverrides": {"CODE": "warning"}, "ignoredIssues": [...],
+"maxIssues": 100}``); sizes are capped with ``--max-bytes``, ``--max-data-uri-bytes`` and
+``--max-splats``. Codes are documented in ``spec/validation.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import difflib
+import json
+import re
+import sys
+
+from gsverse_format import __version__
+
+from .container import Options
+from .issues import CATALOGUE, Severity, parse_severity
+from .report import render_catalogue, render_json, render_text
+from .validate import VALIDATOR_NAME, validate_file
+
+__all__ = ["main", "build_parser"]
+
+_SIZE = re.compile(r"^\s*(\d+)\s*([kmgt]?)(i?b?)\s*$", re.IGNORECASE)
+
+
+class _Usage(Exception):
+    pass
+
+
+def parse_size(text: str) -> int:
+    """``123``, ``64k``, ``512M``, ``2G``, ``1GiB`` -> bytes (binary multiples)."""
+    m = _SIZE.match(str(text))
+    if not m:
+        raise argparse.ArgumentTypeError(f"not a size: {text!r} (examples: 1000000, 512M, 2G)")
+    return int(m.group(1)) * 1024 ** " kmgt".index(m.group(2).lower() or " ")
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {value}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=VALIDATOR_NAME,
+        description="Validate mesh-anchored Gaussian splat assets (.glb, .gltf): container, "
+                    "KHR_gaussian_splatting, GSVERSE_gaussian_splatting_mesh_anchor, anchor "
+                    "mesh and rest-pose consistency. Exit status 0: no errors, 1: errors, "
+                    "2: bad usage or unreadable file.")
+    p.add_argument("files", nargs="*", metavar="FILE", help=".glb or .gltf files")
+    p.add_argument("--format", choices=("text", "json"), default="text",
+                   help="report format (default: text)")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="text format: only one summary line per file")
+    p.add_argument("--severity", action="append", default=[], metavar="CODE=LEVEL",
+                   help="override a code's severity: error, warning, info, hint or ignore "
+                        "(repeatable)")
+    p.add_argument("--ignore", action="append", default=[], metavar="CODE",
+                   help="do not report CODE (repeatable)")
+    p.add_argument("--config", metavar="FILE",
+                   help='JSON file: {"severityOverrides": {CODE: LEVEL}, "ignoredIssues": '
+                        '[CODE...], "maxIssues": N}')
+    p.add_argument("--max-issues", type=_count, metavar="N",
+                   help="report at most N findings per file (default and 0: all)")
+    p.add_argument("--max-examples", type=_count, default=5, metavar="N",
+                   help="examples listed per aggregated finding (default: 5)")
+    p.add_argument("--max-bytes", type=parse_size, metavar="SIZE",
+                   help="cap on the file plus the buffers it loads (default: 8G)")
+    p.add_argument("--max-data-uri-bytes", type=parse_size, metavar="SIZE",
+                   help="cap on each decoded data: URI (default: only --max-bytes)")
+    p.add_argument("--max-splats", type=_count, metavar="N",
+                   help="do not read primitives with more than N splats (default: no cap)")
+    p.add_argument("--list-codes", action="store_true",
+                   help="print every issue code with its default severity and exit")
+    p.add_argument("--version", action="version", version=f"{VALIDATOR_NAME} {__version__}")
+    return p
+
+
+def _code(name: str, where: str) -> str:
+    code = str(name).strip().upper()
+    if code not in CATALOGUE:
+        close = difflib.get_close_matches(code, list(CATALOGUE), n=1)
+        hint = f" (did you mean {close[0]}?)" if close else " (see --list-codes)"
+        raise _Usage(f"{where}: unknown issue code {name!r}{hint}")
+    return code
+
+
+def _overrides(args: argparse.Namespace) -> tuple[dict[str, Severity | None], int | None]:
+    overrides: dict[str, Severity | None] = {}
+    max_issues = args.max_issues or None  # 0 = no cap, as in the Khronos validator
+    if args.config:
+        try:
+            with open(args.config, encoding="utf-8") as handle:
+                config = json.load(handle)
+        except (OSError, ValueError) as err:
+            raise _Usage(f"--config {args.config}: cannot read: {err}") from None
+        if not isinstance(config, dict):
+            raise _Usage(f"--config {args.config}: must hold a JSON object")
+        unknown = set(config) - {"severityOverrides", "ignoredIssues", "maxIssues"}
+        if unknown:
+            raise _Usage(f"--config {args.config}: unknown key(s) {', '.join(sorted(unknown))}")
+        sev = config.get("severityOverrides", {})
+        ignored = config.get("ignoredIssues", [])
+        if not isinstance(sev, dict) or not isinstance(ignored, list):
+            raise _Usage(f"--config {args.config}: severityOverrides must be an object and "
+                         f"ignoredIssues an array")
+        for code, level in sev.items():
+            try:
+                overrides[_code(code, "--config")] = parse_severity(level)
+            except ValueError as err:
+                raise _Usage(f"--config {args.config}: {code}: {err}") from None
+        for code in ignored:
+            overrides[_code(code, "--config")] = None
+        if "maxIssues" in config and max_issues is None:
+            value = config["maxIssues"]
+            if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+                raise _Usage(f"--config {args.config}: maxIssues must be an integer >= 0")
+            max_issues = value or None
+    for item in args.severity:
+        if "=" not in item:
+            raise _Usage(f"--severity {item!r}: expected CODE=LEVEL")
+        code, level = item.split("=", 1)
+        try:
+            overrides[_code(code, "--severity")] = parse_severity(level)
+        except ValueError as err:
+            raise _Usage(f"--severity {item!r}: {err}") from None
+    for code in args.ignore:
+        overrides[_code(code, "--ignore")] = None
+    return overrides, max_issues
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help/--version
+        return int(exc.code or 0)
+    out = sys.stdout
+    if args.list_codes:
+        out.write(render_catalogue(as_json=args.format == "json"))
+        return 0
+    try:
+        if not args.files:
+            raise _Usage("no files given")
+        overrides, max_issues = _overrides(args)
+    except _Usage as err:
+        sys.stderr.write(f"{VALIDATOR_NAME}: error: {err}\n")
+        return 2
+    options = Options(max_examples=args.max_examples, max_splats=args.max_splats,
+                      max_data_uri_bytes=args.max_data_uri_bytes)
+    if args.max_bytes is not None:
+        options.max_bytes = args.max_bytes
+    reports = [validate_file(path, options, overrides=overrides, max_issues=max_issues)
+               for path in args.files]
+    if args.format == "json":
+        out.write(render_json(reports))
+    else:
+        out.write(render_text(reports, quiet=args.quiet))
+    out.flush()
+    return max((r.exit_status for r in reports), default=0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

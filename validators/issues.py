@@ -1,0 +1,409 @@
+"""Findings, severities and the catalogue of every issue code ``gsverse-validate`` reports.
+
+Reporting follows the Khronos glTF-Validator: every finding has a stable ``code``, a
+``severity`` (error, warning, info, hint), a location (a JSON pointer into the glTF JSON, or a
+byte ``offset`` into a GLB file) and a one-line ``message``. Findings about many splats or
+triangles at once are aggregated: one finding with a ``count`` and a few ``examples``.
+
+:data:`CATALOGUE` is the single source of truth for codes: ``spec/validation.md`` is generated
+from it (:mod:`gsverse_format.validators.catalogue`) and a test keeps the two identical.
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Severity", "CodeInfo", "CATALOGUE", "Finding", "Issues", "TOLERANCES",
+           "parse_severity"]
+
+
+class Severity(enum.IntEnum):
+    """Severities, numbered as in the Khronos glTF-Validator (0 is the most severe)."""
+
+    ERROR = 0
+    WARNING = 1
+    INFO = 2
+    HINT = 3
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+
+def parse_severity(text: str) -> Severity | None:
+    """``error``/``warning``/``info``/``hint`` (or 0..3) -> :class:`Severity`; ``ignore`` ->
+    ``None``. Raises ``ValueError`` for anything else."""
+    word = str(text).strip().lower()
+    if word in ("ignore", "off", "none"):
+        return None
+    aliases = {"information": "info", "err": "error", "warn": "warning"}
+    word = aliases.get(word, word)
+    for sev in Severity:
+        if word in (sev.label, str(int(sev))):
+            return sev
+    raise ValueError(f"unknown severity {text!r}; use error, warning, info, hint or ignore")
+
+
+@dataclass(frozen=True)
+class CodeInfo:
+    """One catalogue entry: what triggers the code, where it points, how to fix the asset."""
+
+    code: str
+    severity: Severity
+    group: str
+    trigger: str
+    pointer: str
+    fix: str
+    fatal: bool = False  # validation of the file stops after it
+    unreadable: bool = False  # the file could not be validated at all (exit status 2)
+
+
+#: Numerical tolerances used by the checks (documented in ``spec/validation.md``).
+TOLERANCES: dict[str, tuple[float, str]] = {
+    "unit_quaternion": (1e-5, "| ‖q‖ − 1 | allowed for FLOAT quaternions (ROTATION, "
+                              "localRotation); normalized-integer quaternions are allowed one "
+                              "quantization step more (1/127 for BYTE, 1/32767 for SHORT)"),
+    "simplex": (1e-5, "how far below 0 a barycentric weight b0 = 1 − b1 − b2, b1 or b2 of a "
+                      "`games` splat may lie; normalized-integer barycentrics are allowed one "
+                      "quantization step more (1/255 or 1/65535)"),
+    "local_far": (1.0, "a `local` splat whose smallest barycentric weight is below −1 has its "
+                       "foot point farther outside its triangle than the triangle's own "
+                       "height over that edge"),
+    "sliver": (1e-3, "a regular triangle is a sliver when its doubled area a ≤ 1e-3 · ℓ² "
+                     "(smallest height ≤ 0.1 % of the longest edge)"),
+    "rest_mean": (1e-5, "spec §Rest-pose consistency: |Δμ| ≤ 1e-5 · D, D the diagonal of the "
+                        "anchor mesh's bounding box"),
+    "rest_covariance": (1e-4, "spec §Rest-pose consistency: ‖ΔΣ‖_F ≤ 1e-4 · ‖Σ‖_F, plus an "
+                              "absolute floor of (1e-7 · D)² for covariances below float32 "
+                              "resolution"),
+}
+
+
+def _c(code: str, severity: Severity, group: str, trigger: str, pointer: str, fix: str,
+       **kw: Any) -> CodeInfo:
+    return CodeInfo(code, severity, group, trigger, pointer, fix, **kw)
+
+
+E, W, I, H = Severity.ERROR, Severity.WARNING, Severity.INFO, Severity.HINT
+_PRIM = "/meshes/{m}/primitives/{p}"
+_EXT = _PRIM + "/extensions/KHR_gaussian_splatting/extensions/GSVERSE_gaussian_splatting_mesh_anchor"
+
+_ENTRIES = [
+    # -- file ------------------------------------------------------------------------
+    _c("IO_ERROR", E, "File", "The file does not exist, is a folder, or cannot be read.",
+       "none", "Pass a readable .glb or .gltf file.", fatal=True, unreadable=True),
+    _c("FILE_TYPE_UNSUPPORTED", E, "File", "The file name does not end in .glb or .gltf and "
+       "the file does not start with the GLB magic.", "none",
+       "Validate glTF assets only (convert other formats with gsverse-convert).",
+       fatal=True, unreadable=True),
+    _c("SIZE_LIMIT_EXCEEDED", E, "File", "The file plus the buffers it loads exceed "
+       "--max-bytes (checked before anything is allocated). When the file itself is too large "
+       "validation stops; a buffer that would pass the limit is not loaded.", "none or /buffers/{i}/uri",
+       "Raise --max-bytes if the asset is legitimately that large."),
+    _c("SPLAT_COUNT_LIMIT", E, "File", "A splat primitive declares more splats than "
+       "--max-splats; its data are not read.", _PRIM + "/attributes/POSITION",
+       "Raise --max-splats, or split the asset."),
+    # -- GLB -------------------------------------------------------------------------
+    _c("GLB_TRUNCATED", E, "GLB container", "The file is shorter than the 12-byte GLB header, "
+       "than its length field, or a chunk header runs past the end.", "byte offset",
+       "Re-export the file; it was cut short.", fatal=True),
+    _c("GLB_BAD_MAGIC", E, "GLB container", "A .glb file does not start with the magic "
+       "'glTF'.", "byte offset 0", "Make sure the file really is a GLB (a .gltf JSON file "
+       "must be named .gltf).", fatal=True),
+    _c("GLB_UNSUPPORTED_VERSION", E, "GLB container", "The GLB container version is not 2.",
+       "byte offset 4", "Re-export as glTF 2.0 binary.", fatal=True),
+    _c("GLB_LENGTH_MISMATCH", E, "GLB container", "The GLB length field is smaller than the "
+       "file (trailing bytes).", "byte offset 8", "Strip the trailing bytes or fix the "
+       "length field.", fatal=True),
+    _c("GLB_CHUNK_TOO_LONG", E, "GLB container", "A chunk's length runs past the end of the "
+       "file.", "byte offset of the chunk header", "Re-export the file.", fatal=True),
+    _c("GLB_FIRST_CHUNK_NOT_JSON", E, "GLB container", "The GLB has no chunk, or its first "
+       "chunk is not of type JSON.", "byte offset 12", "Write the JSON chunk first.",
+       fatal=True),
+    _c("GLB_CHUNK_UNALIGNED", E, "GLB container", "A chunk length is not a multiple of 4.",
+       "byte offset of the chunk header", "Pad the JSON chunk with spaces and the BIN chunk "
+       "with zeros to a multiple of 4 bytes."),
+    _c("GLB_UNKNOWN_CHUNK", W, "GLB container", "A chunk has a type other than JSON or BIN; "
+       "it is ignored.", "byte offset of the chunk type", "Remove the chunk."),
+    _c("GLB_UNEXPECTED_CHUNK", E, "GLB container", "A JSON chunk that is not the first chunk, "
+       "or a BIN chunk that is not the second; it is ignored.",
+       "byte offset of the chunk type", "Keep exactly one JSON chunk followed by at most one "
+       "BIN chunk."),
+    # -- JSON ------------------------------------------------------------------------
+    _c("JSON_NOT_UTF8", E, "JSON", "The glTF JSON is not valid UTF-8.", "none",
+       "Write the JSON as UTF-8.", fatal=True),
+    _c("JSON_INVALID", E, "JSON", "The glTF JSON does not parse, or its root is not an "
+       "object.", "none or \"\" (the root)", "Write valid JSON.", fatal=True),
+    _c("GLTF_SCHEMA_VIOLATION", E, "JSON", "A core glTF property has the wrong JSON type or an "
+       "out-of-range value (for example a string byteOffset, 2.5 as an index, or a negative "
+       "byteLength). Type errors stop validation; value errors are reported per object.",
+       "the offending property", "Follow the glTF 2.0 JSON schema.", fatal=True),
+    _c("ASSET_VERSION_UNSUPPORTED", E, "JSON", "asset or asset.version is missing, or the "
+       "version is not 2.x.", "/asset/version", "Write \"asset\": {\"version\": \"2.0\"}."),
+    _c("UNSUPPORTED_REQUIRED_EXTENSION", E, "JSON", "extensionsRequired lists a compression "
+       "extension (Draco, meshopt, KHR_gaussian_splatting_*) whose data this toolkit cannot "
+       "decode; such assets cannot be checked or converted.", "/extensionsRequired/{i}",
+       "Decompress the asset first."),
+    _c("UNRESOLVED_REFERENCE", E, "JSON", "An index (accessor, bufferView, buffer, mesh, "
+       "primitive) is not an integer or points past the end of its array.",
+       "the referencing property", "Fix the index."),
+    _c("EXTENSION_NOT_DECLARED", E, "JSON", "KHR_gaussian_splatting or "
+       "GSVERSE_gaussian_splatting_mesh_anchor is used but not listed in extensionsUsed "
+       "(the Khronos validator does not detect this for nested extensions).",
+       "the extension object", "Add the extension's name to extensionsUsed."),
+    _c("ANCHOR_EXTENSION_REQUIRED", E, "JSON", "GSVERSE_gaussian_splatting_mesh_anchor is "
+       "listed in extensionsRequired (the spec forbids it: the rest pose is a complete "
+       "fallback, and loaders refuse assets with unknown required extensions).",
+       "/extensionsRequired/{i}", "Remove it from extensionsRequired."),
+    # -- buffers ---------------------------------------------------------------------
+    _c("URI_SCHEME_REJECTED", E, "Buffers and URIs", "A buffer URI has a scheme other than "
+       "data: (http:, file:, a drive letter, ...). Nothing is ever fetched.",
+       "/buffers/{i}/uri", "Embed the buffer (GLB BIN chunk or data: URI) or use a relative "
+       "path inside the asset's folder."),
+    _c("URI_ABSOLUTE_PATH", E, "Buffers and URIs", "A buffer URI is an absolute path (also "
+       "percent-encoded, or //host).", "/buffers/{i}/uri", "Use a path relative to the "
+       "asset's folder."),
+    _c("URI_OUTSIDE_FOLDER", E, "Buffers and URIs", "A relative buffer URI leaves the asset's "
+       "folder ('..' segments, also percent-encoded, or a symbolic link pointing outside).",
+       "/buffers/{i}/uri", "Move the buffer next to the asset."),
+    _c("URI_NOT_FOUND", E, "Buffers and URIs", "A relative buffer file does not exist.",
+       "/buffers/{i}/uri", "Ship the buffer file with the asset."),
+    _c("URI_INVALID", E, "Buffers and URIs", "A URI is empty or holds a NUL byte, or a data: "
+       "URI has no comma, is not base64, or does not decode.", "/buffers/{i}/uri",
+       "Write a base64 data: URI (data:application/octet-stream;base64,...)."),
+    _c("DATA_URI_TOO_LARGE", E, "Buffers and URIs", "A data: URI decodes to more bytes than "
+       "--max-data-uri-bytes (checked before decoding).", "/buffers/{i}/uri",
+       "Store large buffers in a GLB, or raise the limit."),
+    _c("BUFFER_MISSING_DATA", E, "Buffers and URIs", "A buffer has no uri and is not buffer 0 "
+       "of a GLB with a BIN chunk.", "/buffers/{i}", "Add the BIN chunk or a uri."),
+    _c("BUFFER_TOO_SHORT", E, "Buffers and URIs", "A buffer's data are shorter than its "
+       "byteLength.", "/buffers/{i}", "Fix byteLength or the data."),
+    _c("BUFFER_VIEW_OUT_OF_BOUNDS", E, "Buffers and URIs", "A bufferView runs past the end of "
+       "its buffer.", "/bufferViews/{i}", "Fix byteOffset/byteLength."),
+    _c("BUFFER_VIEW_STRIDE_INVALID", E, "Buffers and URIs", "byteStride is outside 4..252, "
+       "not a multiple of 4, smaller than an element of an accessor using the view, or not a "
+       "multiple of its component size.", "/bufferViews/{i}/byteStride",
+       "Use a stride that is a multiple of 4 and at least the element size."),
+    # -- accessors -------------------------------------------------------------------
+    _c("ACCESSOR_INVALID", E, "Accessors", "Unknown type or componentType, normalized set on "
+       "a FLOAT or UNSIGNED_INT accessor, or count < 1.", "/accessors/{i}/...",
+       "Write a valid accessor."),
+    _c("ACCESSOR_UNSUPPORTED", E, "Accessors", "An accessor holding splat, anchor or anchor "
+       "mesh data is sparse or has no bufferView (compressed or placeholder data), which "
+       "this toolkit cannot read.", "/accessors/{i}", "Store the data densely in a "
+       "bufferView (decompress the asset)."),
+    _c("ACCESSOR_OUT_OF_BOUNDS", E, "Accessors", "byteOffset + byteStride × (count − 1) + "
+       "element size exceeds the bufferView's byteLength.", "/accessors/{i}",
+       "Fix count, byteOffset or the bufferView."),
+    _c("ACCESSOR_MISALIGNED", E, "Accessors", "accessor.byteOffset or bufferView.byteOffset + "
+       "accessor.byteOffset is not a multiple of the component size, or a splat vertex "
+       "attribute's offset or stride is not a multiple of 4.", "/accessors/{i}",
+       "Align the data (the writer of this toolkit aligns every view to 4 bytes)."),
+    _c("NON_FINITE_VALUE", E, "Accessors", "NaN or infinity in splat data, anchor data or "
+       "anchor mesh positions.", "the attribute or extension property",
+       "Remove or repair the affected splats."),
+    # -- KHR_gaussian_splatting ---------------------------------------------------------
+    _c("KHR_NO_SPLATS", W, "KHR_gaussian_splatting", "The file has no primitive with the "
+       "KHR_gaussian_splatting extension.", "none", "Check that the right file was passed."),
+    _c("KHR_PRIMITIVE_NOT_POINTS", E, "KHR_gaussian_splatting", "A primitive with the "
+       "extension does not have mode POINTS (0).", _PRIM + "/mode", "Set \"mode\": 0."),
+    _c("KHR_PROPERTY_MISSING", E, "KHR_gaussian_splatting", "The extension object lacks a "
+       "required property (kernel, colorSpace).", _PRIM + "/extensions/KHR_gaussian_splatting",
+       "Add it (kernel \"ellipse\", colorSpace \"srgb_rec709_display\" or "
+       "\"lin_rec709_display\")."),
+    _c("KHR_PROPERTY_INVALID", E, "KHR_gaussian_splatting", "The extension object, its "
+       "extensions member, or kernel/colorSpace/projection/sortingMethod has the wrong JSON "
+       "type.", _PRIM + "/extensions/KHR_gaussian_splatting/...", "Use an object and strings."),
+    _c("KHR_PROPERTY_UNKNOWN_VALUE", W, "KHR_gaussian_splatting", "kernel, colorSpace, "
+       "projection or sortingMethod has a value the base extension does not define (another "
+       "extension may define it; viewers fall back to the defaults).",
+       _PRIM + "/extensions/KHR_gaussian_splatting/{property}", "Use a defined value, or "
+       "declare the extension that defines it."),
+    _c("KHR_ATTRIBUTE_MISSING", E, "KHR_gaussian_splatting", "POSITION, "
+       "KHR_gaussian_splatting:ROTATION, :SCALE, :OPACITY or :SH_DEGREE_0_COEF_0 is missing.",
+       _PRIM + "/attributes", "Write every required attribute."),
+    _c("KHR_ATTRIBUTE_FORMAT", E, "KHR_gaussian_splatting", "A splat attribute's accessor "
+       "type or component type is not allowed: POSITION FLOAT VEC3 (or the "
+       "KHR_mesh_quantization types); ROTATION VEC4 FLOAT or BYTE/SHORT normalized; SCALE VEC3 "
+       "FLOAT or UNSIGNED_BYTE/UNSIGNED_SHORT (normalized or not); OPACITY SCALAR FLOAT or "
+       "UNSIGNED_BYTE/UNSIGNED_SHORT normalized; SH VEC3 FLOAT.", _PRIM + "/attributes/{name}",
+       "Store the attribute in an allowed format."),
+    _c("KHR_UNKNOWN_SEMANTIC", E, "KHR_gaussian_splatting", "An attribute named "
+       "KHR_gaussian_splatting:* is not ROTATION, SCALE, OPACITY or SH_DEGREE_l_COEF_n with "
+       "l ≤ 3 and n ≤ 2l.", _PRIM + "/attributes/{name}", "Rename or remove the attribute."),
+    _c("KHR_SH_INCOMPLETE", E, "KHR_gaussian_splatting", "An SH degree is partially defined, "
+       "or a degree is present while a lower one is missing.", _PRIM + "/attributes",
+       "Write all 2l + 1 coefficients of every degree up to the highest."),
+    _c("ATTRIBUTE_COUNT_MISMATCH", E, "KHR_gaussian_splatting", "The attributes of one "
+       "primitive have different counts.", _PRIM + "/attributes/{name}",
+       "Give every attribute one element per splat."),
+    _c("ROTATION_NOT_UNIT", E, "KHR_gaussian_splatting", "A rotation quaternion "
+       "(KHR_gaussian_splatting:ROTATION or localRotation) is not of unit length within the "
+       "tolerance, or is zero.", _PRIM + "/attributes/KHR_gaussian_splatting:ROTATION or "
+       + _EXT + "/localRotation", "Normalize the quaternions before writing."),
+    _c("SCALE_NEGATIVE", E, "KHR_gaussian_splatting", "A scale (KHR_gaussian_splatting:SCALE "
+       "or localScale) is negative. Scales are linear standard deviations, never logs.",
+       _PRIM + "/attributes/KHR_gaussian_splatting:SCALE or " + _EXT + "/localScale",
+       "Store exp() of 3DGS log-scales."),
+    _c("OPACITY_OUT_OF_RANGE", E, "KHR_gaussian_splatting", "An opacity is outside [0, 1]. "
+       "Opacities are linear, after the sigmoid.", _PRIM + "/attributes/"
+       "KHR_gaussian_splatting:OPACITY", "Store sigmoid() of 3DGS opacity logits."),
+    # -- anchor extension ----------------------------------------------------------------
+    _c("ANCHOR_SCHEMA_VIOLATION", E, "Anchor extension", "The extension object violates its "
+       "JSON Schema: a required property is missing (mesh, profile, faceIndex, barycentrics; "
+       "normalOffset, localRotation, localScale for local; rho for games), a property has "
+       "the wrong type or value, or deformation is present with the games profile.",
+       _EXT + " or " + _EXT + "/{property}", "Follow spec/schema/primitive.KHR_gaussian_"
+       "splatting.GSVERSE_gaussian_splatting_mesh_anchor.schema.json."),
+    _c("ANCHOR_EXTENSION_MISPLACED", E, "Anchor extension", "The anchor extension object is "
+       "placed directly in primitive.extensions instead of inside "
+       "primitive.extensions.KHR_gaussian_splatting.extensions, where readers look for it.",
+       _PRIM + "/extensions/GSVERSE_gaussian_splatting_mesh_anchor",
+       "Move it into the KHR_gaussian_splatting extension object's extensions."),
+    _c("ANCHOR_MESH_SAME_AS_SPLAT", E, "Anchor extension", "The anchor primitive is in the "
+       "same glTF mesh as the splat primitive (some KHR loaders reject such meshes).",
+       _EXT + "/mesh", "Put the anchor triangles in a mesh of their own."),
+    _c("ANCHOR_MESH_NOT_TRIANGLES", E, "Anchor mesh", "The anchor primitive's mode is not "
+       "TRIANGLES (4).", "/meshes/{m}/primitives/{p}/mode", "Store the anchor mesh as "
+       "TRIANGLES."),
+    _c("ANCHOR_MESH_POSITION_INVALID", E, "Anchor mesh", "The anchor primitive has no "
+       "POSITION, or it is not FLOAT VEC3.", "/meshes/{m}/primitives/{p}/attributes",
+       "Store FLOAT VEC3 positions."),
+    _c("ANCHOR_MESH_INDICES_INVALID", E, "Anchor mesh", "The anchor indices are not "
+       "SCALAR UNSIGNED_BYTE/SHORT/INT (not normalized), their count is not a multiple of 3, "
+       "an index is out of range, or a non-indexed vertex count is not a multiple of 3.",
+       "/meshes/{m}/primitives/{p}/indices", "Write valid triangle indices."),
+    _c("ANCHOR_MESH_INSTANTIATED", W, "Anchor mesh", "A node instantiates the anchor mesh, so "
+       "KHR-only viewers draw the triangles over the splats (the spec says SHOULD NOT).",
+       "/nodes/{n}/mesh", "Remove the mesh from the node (the extension reaches it by index)."),
+    _c("MESH_DEGENERATE_TRIANGLES", W, "Anchor mesh", "Triangles of the anchor mesh are "
+       "degenerate at rest by the spec's rule (a ≤ ε_deg ℓ², ε_deg = 1e-6); count and "
+       "examples. (Splats bound to them are ANCHOR_BOUND_TO_DEGENERATE.)",
+       "/meshes/{m}/primitives/{p}", "Remove or repair them; binders never use them."),
+    _c("MESH_SLIVER_TRIANGLES", I, "Anchor mesh", "Regular triangles that are nearly "
+       "degenerate (a ≤ 1e-3 ℓ²): barycentric and affine remaps amplify noise on them.",
+       "/meshes/{m}/primitives/{p}", "Remesh or decimate the anchor mesh."),
+    _c("MESH_DUPLICATE_TRIANGLES", W, "Anchor mesh", "Triangles with the same three corner "
+       "positions as an earlier triangle (in any order); count and example pairs.",
+       "/meshes/{m}/primitives/{p}", "Remove duplicate faces (the nearest triangle becomes "
+       "ambiguous)."),
+    _c("ANCHOR_ACCESSOR_FORMAT", E, "Anchor extension", "An anchor accessor's type or component "
+       "type differs from the spec's table (faceIndex SCALAR unsigned integer; barycentrics "
+       "VEC2 FLOAT or UNSIGNED_BYTE/SHORT normalized; normalOffset SCALAR FLOAT; "
+       "localRotation VEC4 FLOAT or BYTE/SHORT normalized; localScale VEC3 as SCALE; rho "
+       "SCALAR FLOAT).", _EXT + "/{property}", "Store the property in an allowed format."),
+    _c("ANCHOR_ACCESSOR_COUNT", E, "Anchor extension", "An anchor accessor's count differs "
+       "from the splat primitive's POSITION count.", _EXT + "/{property}",
+       "Write one anchor element per splat."),
+    _c("ANCHOR_ACCESSOR_TARGET", W, "Anchor extension", "The bufferView of an anchor accessor "
+       "(that is not also a vertex attribute of the primitive) sets target (the spec says "
+       "SHOULD NOT: the data are not vertex attributes).", _EXT + "/{property}",
+       "Drop target from the bufferView."),
+    _c("ANCHOR_FACE_OUT_OF_RANGE", E, "Anchor extension", "A faceIndex is not less than the "
+       "anchor primitive's triangle count; count and examples.", _EXT + "/faceIndex",
+       "Bind every splat to an existing triangle."),
+    _c("ANCHOR_BOUND_TO_DEGENERATE", E, "Anchor extension", "Splats are bound to triangles "
+       "that are degenerate at rest (writers MUST NOT do this); count and examples.",
+       _EXT + "/faceIndex", "Re-bind those splats to regular triangles."),
+    _c("GAMES_BARYCENTRICS_OUTSIDE_SIMPLEX", E, "Anchor extension", "A games splat's "
+       "barycentrics (b1, b2, b0 = 1 − b1 − b2) are not all ≥ 0 within the tolerance "
+       "(GaMeS weights are normalized, so they MUST lie in the triangle).",
+       _EXT + "/barycentrics", "Re-export the GaMeS weights (softmax-normalized α)."),
+    _c("LOCAL_BARYCENTRICS_FAR", I, "Anchor extension", "A local splat's foot point lies far "
+       "outside its triangle: its smallest barycentric weight is below −1. The spec allows "
+       "weights outside the simplex (the foot of a splat nearest to an edge or corner), so "
+       "this is information only: such splats sit far from the surface relative to their "
+       "triangle and follow its deformation with a long lever arm.", _EXT + "/barycentrics",
+       "Usually none; check for floaters far from the mesh."),
+    _c("LOCAL_SCALE_NOT_SHARED", H, "Anchor extension", "localScale does not reference the "
+       "accessor of KHR_gaussian_splatting:SCALE (writers SHOULD share it).",
+       _EXT + "/localScale", "Reference the SCALE accessor to save space."),
+    _c("GAMES_RHO_NEGATIVE", W, "Anchor extension", "A games splat has ρ < 0: every scale "
+       "collapses to the GaMeS floor ε = 1e-8.", _EXT + "/rho", "Check the export of ρ."),
+    _c("ANCHOR_NOT_SORTED", H, "Anchor extension", "The splats of an anchored primitive are "
+       "not sorted by faceIndex (writers SHOULD sort: about 2× faster per-frame remap).",
+       _EXT + "/faceIndex", "Sort the splats by face (gsverse-convert does by default)."),
+    # -- rest pose ---------------------------------------------------------------------
+    _c("REST_POSE_MEAN_MISMATCH", E, "Rest pose", "The remap at the rest anchor mesh does not "
+       "reproduce a stored POSITION within |Δμ| ≤ 1e-5 · D; count and the worst splats. "
+       "Checked only when the splat and anchor data are otherwise valid.",
+       _PRIM + "/attributes/POSITION", "Re-bind the splats, or store the remapped rest pose."),
+    _c("REST_POSE_COVARIANCE_MISMATCH", E, "Rest pose", "The remap at the rest anchor mesh does "
+       "not reproduce a stored covariance R diag(s)² Rᵀ within ‖ΔΣ‖_F ≤ 1e-4 ‖Σ‖_F; count and "
+       "the worst splats. Checked only when the splat and anchor data are otherwise valid.",
+       _PRIM + "/attributes/KHR_gaussian_splatting:ROTATION",
+       "Re-bind the splats, or store the remapped rest pose."),
+    # -- validator -------------------------------------------------------------------
+    _c("INTERNAL_ERROR", E, "Validator", "A check failed unexpectedly: a bug in "
+       "gsverse-validate, not necessarily in the asset. The other checks still ran.", "none",
+       "Report it with the file."),
+]
+
+#: Every code, in catalogue order.
+CATALOGUE: dict[str, CodeInfo] = {entry.code: entry for entry in _ENTRIES}
+assert len(CATALOGUE) == len(_ENTRIES), "duplicate issue code"
+
+
+@dataclass
+class Finding:
+    """One reported issue. ``count``/``examples`` are set for aggregated per-element issues."""
+
+    code: str
+    severity: Severity
+    message: str
+    pointer: str | None = None
+    offset: int | None = None
+    count: int | None = None
+    examples: list[dict] | None = None
+
+    def to_json(self) -> dict:
+        out: dict[str, Any] = {"code": self.code, "severity": self.severity.label,
+                               "message": self.message}
+        if self.pointer is not None:
+            out["pointer"] = self.pointer
+        if self.offset is not None:
+            out["offset"] = self.offset
+        if self.count is not None:
+            out["count"] = self.count
+        if self.examples:
+            out["examples"] = self.examples
+        return out
+
+
+@dataclass
+class Issues:
+    """Collects the findings of one file, applying severity overrides and the issue cap.
+
+    ``overrides`` maps a code to its new severity, or to ``None`` to ignore it.
+    """
+
+    overrides: dict[str, Severity | None] = field(default_factory=dict)
+    max_issues: int | None = None
+    findings: list[Finding] = field(default_factory=list)
+    truncated: bool = False
+    unreadable: bool = False
+
+    def add(self, code: str, message: str, *, pointer: str | None = None,
+            offset: int | None = None, count: int | None = None,
+            examples: list[dict] | None = None) -> None:
+        info = CATALOGUE.get(code)
+        if info is None:  # a code outside the catalogue is a bug of the validator itself
+            message = f"[{code}] {message}"
+            code, info = "INTERNAL_ERROR", CATALOGUE["INTERNAL_ERROR"]
+        if info.unreadable:
+            self.unreadable = True
+        severity = self.overrides[code] if code in self.overrides else info.severity
+        if severity is None:
+            return
+        if self.max_issues is not None and len(self.findings) >= self.max_issues:
+            self.truncated = True
+            return
+        self.findings.append(Finding(code, Severity(severity), message, pointer, offset, count,
+                                     examples))
+
+    def codes(self) -> set[str]:
+        return {f.code for f in self.findings}
+
+    def count(self, severity: Severity) -> int:
+        return sum(1 for f in self.findings if f.severity == severity)

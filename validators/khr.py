@@ -1,0 +1,272 @@
+"""``KHR_gaussian_splatting`` checks the Khronos glTF-Validator does not make.
+
+Per splat primitive: mode POINTS, the extension's required properties and their values, the
+required attributes and their accessor formats (``gsverse_format.io.gltf.KHR_ATTRIBUTE_FORMATS``),
+SH degrees complete, equal attribute counts, 4-byte aligned vertex attributes, and the values:
+finite, unit quaternions, non-negative linear scales, opacities in [0, 1].
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gsverse_format.io import gltf as G
+from gsverse_format.model import COLOR_SPACES
+
+from .container import Context
+from .issues import TOLERANCES
+
+__all__ = ["SplatData", "check_splat_primitive", "format_allowed", "describe_format",
+           "check_finite", "check_unit_quaternions", "check_nonnegative"]
+
+KHR = G.KHR
+_SH_RE = re.compile(r"SH_DEGREE_(\d+)_COEF_(\d+)")
+_REQUIRED = ("POSITION", f"{KHR}:ROTATION", f"{KHR}:SCALE", f"{KHR}:OPACITY",
+             f"{KHR}:SH_DEGREE_0_COEF_0")
+_PROPERTIES = (("kernel", ("ellipse",), True), ("colorSpace", COLOR_SPACES, True),
+               ("projection", ("perspective",), False),
+               ("sortingMethod", ("cameraDistance",), False))
+_STEP = {G.BYTE: 1 / 127, G.SHORT: 1 / 32767, G.UNSIGNED_BYTE: 1 / 255,
+         G.UNSIGNED_SHORT: 1 / 65535}
+
+
+@dataclass
+class SplatData:
+    """What the checks of one splat primitive found out; arrays are ``None`` when unusable.
+
+    ``rest_ok`` is True when POSITION, ROTATION and SCALE were read and are valid, so the
+    rest-pose consistency check can use them.
+    """
+
+    mesh: int
+    primitive: int
+    pointer: str
+    count: int | None = None
+    attributes: dict[str, int] = field(default_factory=dict)
+    means: np.ndarray | None = None
+    rotations: np.ndarray | None = None
+    scales: np.ndarray | None = None
+    rest_ok: bool = False
+
+
+def tok(name: Any) -> str:
+    return G.pointer_token(name)
+
+
+def format_allowed(layout: G.AccessorLayout, fmt) -> bool:
+    types, pairs = fmt
+    return layout.gtype in types and any(
+        c == layout.component_type and (n is None or n == layout.normalized) for c, n in pairs)
+
+
+def describe_format(layout: G.AccessorLayout) -> str:
+    name = G._CTYPE_NAMES.get(layout.component_type, str(layout.component_type))
+    return f"{layout.gtype} {name}" + (" normalized" if layout.normalized else "")
+
+
+def quantization_step(layout: G.AccessorLayout) -> float:
+    """One step of a normalized integer accessor (0 for FLOAT)."""
+    return _STEP.get(layout.component_type, 0.0) if layout.normalized else 0.0
+
+
+def check_finite(ctx: Context, values: np.ndarray, pointer: str, what: str) -> bool:
+    """Report NON_FINITE_VALUE for rows of ``values`` with NaN/Inf; True when all finite."""
+    if values.dtype.kind != "f" or bool(np.isfinite(values).all()):
+        return True
+    bad = np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))
+    ctx.issues.add("NON_FINITE_VALUE", f"{what}: {bad.size} of {len(values)} elements hold NaN "
+                   f"or infinity", pointer=pointer, count=int(bad.size),
+                   examples=ctx.examples(bad, index=np.arange(len(values)), value=values))
+    return False
+
+
+def check_unit_quaternions(ctx: Context, q: np.ndarray, layout: G.AccessorLayout, pointer: str,
+                           what: str) -> bool:
+    """ROTATION_NOT_UNIT for quaternions whose length is off by more than the tolerance."""
+    tol = TOLERANCES["unit_quaternion"][0] + quantization_step(layout)
+    q64 = q.astype(np.float64)
+    norm2 = np.square(q64, out=q64) @ np.ones(q.shape[1])  # row sums, one BLAS pass
+    if len(norm2) == 0 or ((1.0 - tol) ** 2 <= norm2.min() and norm2.max() <= (1.0 + tol) ** 2):
+        return True
+    norm = np.sqrt(norm2)
+    off = np.abs(norm - 1.0)
+    bad = np.flatnonzero(off > tol)
+    if bad.size == 0:
+        return True
+    worst = bad[np.argsort(-off[bad], kind="stable")]
+    ctx.issues.add("ROTATION_NOT_UNIT", f"{what}: {bad.size} of {len(q)} quaternions are not of "
+                   f"unit length (| |q| - 1 | up to {off[bad].max():.3g}, tolerance {tol:.3g})",
+                   pointer=pointer, count=int(bad.size),
+                   examples=ctx.examples(worst, index=np.arange(len(q)), norm=norm))
+    return False
+
+
+def check_nonnegative(ctx: Context, s: np.ndarray, pointer: str, what: str) -> bool:
+    if s.size == 0 or s.min() >= 0:
+        return True
+    bad = np.flatnonzero((s < 0).any(axis=1))
+    ctx.issues.add("SCALE_NEGATIVE", f"{what}: {bad.size} of {len(s)} splats have negative "
+                   f"scales (scales are linear and MUST NOT be negative; log-scales need exp())",
+                   pointer=pointer, count=int(bad.size),
+                   examples=ctx.examples(bad, index=np.arange(len(s)), value=s))
+    return False
+
+
+def _check_properties(ctx: Context, khr: Any, pointer: str) -> None:
+    if not isinstance(khr, dict):
+        ctx.issues.add("KHR_PROPERTY_INVALID", f"the {KHR} extension must be an object",
+                       pointer=pointer)
+        return
+    for prop, known, required in _PROPERTIES:
+        if prop not in khr:
+            if required:
+                ctx.issues.add("KHR_PROPERTY_MISSING", f"{KHR} lacks the required property "
+                               f"{prop!r}", pointer=pointer)
+        elif not isinstance(khr[prop], str):
+            ctx.issues.add("KHR_PROPERTY_INVALID", f"{KHR}.{prop} must be a string, got "
+                           f"{khr[prop]!r:.40}", pointer=f"{pointer}/{prop}")
+        elif khr[prop] not in known:
+            ctx.issues.add("KHR_PROPERTY_UNKNOWN_VALUE", f"{KHR}.{prop} is {khr[prop]!r:.60}, "
+                           f"which the base extension does not define (known: "
+                           f"{', '.join(known)})", pointer=f"{pointer}/{prop}")
+    nested = khr.get("extensions")
+    if nested is not None and not isinstance(nested, dict):
+        ctx.issues.add("KHR_PROPERTY_INVALID", f"{KHR}.extensions must be an object",
+                       pointer=f"{pointer}/extensions")
+
+
+def _check_semantics(ctx: Context, attrs: dict, pointer: str) -> None:
+    present: set[tuple[int, int]] = set()
+    for name in attrs:
+        if not name.startswith(KHR + ":"):
+            continue
+        semantic = name[len(KHR) + 1:]
+        if semantic in ("ROTATION", "SCALE", "OPACITY"):
+            continue
+        m = _SH_RE.fullmatch(semantic)
+        if m and int(m.group(1)) <= 3 and int(m.group(2)) <= 2 * int(m.group(1)) \
+                and str(int(m.group(1))) == m.group(1) and str(int(m.group(2))) == m.group(2):
+            present.add((int(m.group(1)), int(m.group(2))))
+            continue
+        ctx.issues.add("KHR_UNKNOWN_SEMANTIC", f"attribute {name!r:.80} is not a "
+                       f"{KHR} semantic (ROTATION, SCALE, OPACITY, SH_DEGREE_l_COEF_n with "
+                       f"l <= 3, n <= 2l)", pointer=f"{pointer}/attributes/{tok(name)}")
+    missing = [a for a in _REQUIRED if a not in attrs]
+    if missing:
+        ctx.issues.add("KHR_ATTRIBUTE_MISSING", f"required attribute(s) missing: "
+                       f"{', '.join(missing)}", pointer=f"{pointer}/attributes")
+    highest = max((level for level, _ in present), default=-1)
+    for level in range(highest + 1):
+        lacking = [n for n in range(2 * level + 1) if (level, n) not in present]
+        if len(lacking) == 2 * level + 1 and level > 0:
+            ctx.issues.add("KHR_SH_INCOMPLETE", f"SH degree {highest} is present but degree "
+                           f"{level} is missing", pointer=f"{pointer}/attributes")
+        elif lacking and level > 0:
+            ctx.issues.add("KHR_SH_INCOMPLETE", f"SH degree {level} is partially defined "
+                           f"(missing COEF_{', COEF_'.join(map(str, lacking))})",
+                           pointer=f"{pointer}/attributes")
+
+
+def _format_of(name: str, quantized_positions: bool):
+    if name == "POSITION":
+        if quantized_positions:
+            return (("VEC3",), G.KHR_ATTRIBUTE_FORMATS["POSITION"][1] + G.QUANTIZED_POSITION_FORMATS)
+        return G.KHR_ATTRIBUTE_FORMATS["POSITION"]
+    if name in G.KHR_ATTRIBUTE_FORMATS:
+        return G.KHR_ATTRIBUTE_FORMATS[name]
+    if name.startswith(KHR + ":SH_DEGREE_"):
+        return G.KHR_ATTRIBUTE_FORMATS["SH"]
+    return None
+
+
+def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) -> SplatData:
+    """Check one primitive carrying ``KHR_gaussian_splatting`` and read its rest pose."""
+    pointer = f"/meshes/{m}/primitives/{p}"
+    data = SplatData(m, p, pointer)
+    if prim.get("mode", 4) != 0:
+        ctx.issues.add("KHR_PRIMITIVE_NOT_POINTS", f"a {KHR} primitive must have mode POINTS "
+                       f"(0), not {prim.get('mode', 4)!r}", pointer=f"{pointer}/mode")
+    _check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
+    attrs = prim.get("attributes", {})
+    if not isinstance(attrs, dict):
+        return data
+    _check_semantics(ctx, attrs, pointer)
+    used = ctx.doc.get("extensionsUsed", [])
+    quantized_positions = isinstance(used, list) and "KHR_mesh_quantization" in used
+
+    layouts: dict[str, G.AccessorLayout] = {}
+    for name, ref in attrs.items():
+        apointer = f"{pointer}/attributes/{tok(name)}"
+        lay = ctx.accessor(ref, apointer)
+        if lay is None:
+            continue
+        data.attributes[name] = lay.accessor
+        fmt = _format_of(name, quantized_positions)
+        if fmt is not None and not format_allowed(lay, fmt):
+            allowed = ", ".join(f"{'/'.join(fmt[0])} " + G._CTYPE_NAMES[c]
+                                + ("" if n is False else " normalized" if n else " (normalized or not)")
+                                for c, n in fmt[1])
+            ctx.issues.add("KHR_ATTRIBUTE_FORMAT", f"{name} is {describe_format(lay)}; allowed: "
+                           f"{allowed}", pointer=apointer)
+            continue
+        if lay.start % 4 or lay.stride % 4:
+            ctx.issues.add("ACCESSOR_MISALIGNED", f"vertex attribute {name} (accessor "
+                           f"{lay.accessor}) starts at byte {lay.start} with stride {lay.stride}; "
+                           f"both must be multiples of 4", pointer=apointer)
+        layouts[name] = lay
+
+    if not layouts:
+        return data
+    reference = "POSITION" if "POSITION" in layouts else next(iter(layouts))
+    count = layouts[reference].count
+    for name, lay in list(layouts.items()):
+        if lay.count != count:
+            ctx.issues.add("ATTRIBUTE_COUNT_MISMATCH", f"{name} has {lay.count} elements, "
+                           f"{reference} has {count}",
+                           pointer=f"{pointer}/attributes/{tok(name)}")
+            del layouts[name]
+    data.count = count
+    if ctx.options.max_splats is not None and count > ctx.options.max_splats:
+        ctx.issues.add("SPLAT_COUNT_LIMIT", f"the primitive has {count} splats, more than "
+                       f"--max-splats {ctx.options.max_splats}; its values were not checked",
+                       pointer=f"{pointer}/attributes/{tok(reference)}")
+        return data
+
+    def values(name: str) -> tuple[np.ndarray | None, bool]:
+        lay = layouts.get(name)
+        if lay is None:
+            return None, False
+        arr = ctx.floats(lay, f"{pointer} {name}")
+        if arr is None:
+            return None, False
+        return arr, check_finite(ctx, arr, f"{pointer}/attributes/{tok(name)}", name)
+
+    means, ok_m = values("POSITION")
+    rotations, ok_r = values(f"{KHR}:ROTATION")
+    if rotations is not None and ok_r:
+        ok_r = check_unit_quaternions(ctx, rotations, layouts[f"{KHR}:ROTATION"],
+                                      f"{pointer}/attributes/{tok(KHR + ':ROTATION')}", "ROTATION")
+    scales, ok_s = values(f"{KHR}:SCALE")
+    if scales is not None and ok_s:
+        ok_s = check_nonnegative(ctx, scales, f"{pointer}/attributes/{tok(KHR + ':SCALE')}",
+                                 "SCALE")
+    opacity, ok_o = values(f"{KHR}:OPACITY")
+    if opacity is not None and ok_o:
+        o = opacity[:, 0]
+        bad = np.flatnonzero((o < 0) | (o > 1)) if o.min() < 0 or o.max() > 1 else ()
+        if len(bad):
+            ctx.issues.add("OPACITY_OUT_OF_RANGE", f"OPACITY: {bad.size} of {len(o)} opacities "
+                           f"are outside [0, 1] (opacities are linear, after the sigmoid)",
+                           pointer=f"{pointer}/attributes/{tok(KHR + ':OPACITY')}",
+                           count=int(bad.size),
+                           examples=ctx.examples(bad, index=np.arange(len(o)), value=o))
+    for name in layouts:
+        if name.startswith(KHR + ":SH_DEGREE_"):
+            values(name)
+    data.means, data.rotations, data.scales = means, rotations, scales
+    data.rest_ok = (means is not None and rotations is not None and scales is not None
+                    and ok_m and ok_r and ok_s)
+    return data

@@ -1,0 +1,159 @@
+"""Validate one ``.glb``/``.gltf`` file: container, ``KHR_gaussian_splatting``, anchor extension,
+anchor mesh and rest-pose consistency. Returns a :class:`Report`; never raises for bad input.
+"""
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gsverse_format import __version__
+from gsverse_format.io import gltf as G
+
+from .anchor import check_anchor
+from .container import GLB_MIME, GLTF_MIME, Context, Options, load_container
+from .issues import Issues, Severity
+from .khr import check_splat_primitive
+
+__all__ = ["Report", "validate_file", "VALIDATOR_NAME"]
+
+VALIDATOR_NAME = "gsverse-validate"
+
+
+@dataclass
+class Report:
+    """The findings for one file and a short description of what it holds (``info``)."""
+
+    path: str
+    issues: Issues
+    mime_type: str | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    @property
+    def findings(self):
+        return self.issues.findings
+
+    def codes(self) -> set[str]:
+        return self.issues.codes()
+
+    def count(self, severity: Severity) -> int:
+        return self.issues.count(severity)
+
+    @property
+    def exit_status(self) -> int:
+        """2: the file could not be validated; 1: errors; 0: no errors."""
+        if self.issues.unreadable:
+            return 2
+        return 1 if self.count(Severity.ERROR) else 0
+
+    def to_json(self) -> dict:
+        return {
+            "uri": self.path,
+            "mimeType": self.mime_type,
+            "validatorVersion": f"{VALIDATOR_NAME} {__version__}",
+            "issues": {
+                "numErrors": self.count(Severity.ERROR),
+                "numWarnings": self.count(Severity.WARNING),
+                "numInfos": self.count(Severity.INFO),
+                "numHints": self.count(Severity.HINT),
+                "messages": [f.to_json() for f in self.findings],
+                "truncated": self.issues.truncated,
+            },
+            "info": self.info,
+            "exitStatus": self.exit_status,
+        }
+
+
+def _where(err: BaseException) -> str:
+    frames = traceback.extract_tb(err.__traceback__)
+    if not frames:
+        return ""
+    last = frames[-1]
+    return f" at {os.path.basename(last.filename)}:{last.lineno}"
+
+
+def _internal(issues: Issues, err: BaseException, pointer: str | None = None) -> None:
+    issues.add("INTERNAL_ERROR", f"{type(err).__name__}: {err}{_where(err)}"[:300],
+               pointer=pointer)
+
+
+def _check_document(ctx: Context, info: dict) -> None:
+    doc = ctx.doc
+    used = doc.get("extensionsUsed", [])
+    if not isinstance(used, list):
+        ctx.issues.add("GLTF_SCHEMA_VIOLATION", "extensionsUsed must be an array",
+                       pointer="/extensionsUsed")
+        used = []
+    required = doc.get("extensionsRequired", [])
+    if isinstance(required, list):
+        for i, name in enumerate(required):
+            if name == G.ANCHOR:
+                ctx.issues.add("ANCHOR_EXTENSION_REQUIRED", f"{G.ANCHOR} must not be listed in "
+                               f"extensionsRequired (the rest pose is a complete fallback)",
+                               pointer=f"/extensionsRequired/{i}")
+    khr_uses: list[str] = []
+    anchor_uses: list[str] = []
+    splats = anchored = total = 0
+    for m, mesh in enumerate(ctx.array("meshes")):
+        for p, prim in enumerate(mesh.get("primitives", [])):
+            pointer = f"/meshes/{m}/primitives/{p}"
+            extensions = prim.get("extensions", {})
+            if G.ANCHOR in extensions:
+                ctx.issues.add("ANCHOR_EXTENSION_MISPLACED", f"{G.ANCHOR} belongs inside "
+                               f"extensions.{G.KHR}.extensions, not directly in the primitive's "
+                               f"extensions", pointer=f"{pointer}/extensions/{G.ANCHOR}")
+            if G.KHR not in extensions:
+                continue
+            khr = extensions[G.KHR]
+            khr_uses.append(f"{pointer}/extensions/{G.KHR}")
+            try:
+                data = check_splat_primitive(ctx, m, p, prim, khr)
+                splats += 1
+                total += data.count or 0
+                nested = khr.get("extensions") if isinstance(khr, dict) else None
+                if isinstance(nested, dict) and G.ANCHOR in nested:
+                    apointer = f"{pointer}/extensions/{G.KHR}/extensions/{G.ANCHOR}"
+                    anchor_uses.append(apointer)
+                    anchored += 1
+                    check_anchor(ctx, data, nested[G.ANCHOR], apointer)
+            except Exception as err:  # a bug must not hide the other findings
+                _internal(ctx.issues, err, pointer)
+    if not khr_uses:
+        ctx.issues.add("KHR_NO_SPLATS", f"the file has no {G.KHR} primitive")
+    for name, uses in ((G.KHR, khr_uses), (G.ANCHOR, anchor_uses)):
+        if uses and name not in used:
+            ctx.issues.add("EXTENSION_NOT_DECLARED", f"{name} is used ({len(uses)} time(s)) but "
+                           f"not listed in extensionsUsed", pointer=uses[0])
+    info.update({"splatPrimitives": splats, "anchoredPrimitives": anchored, "splats": total,
+                 "anchorPrimitives": sum(1 for k in ctx.cache if k[0] == "anchor")})
+    generator = doc.get("asset", {}).get("generator") if isinstance(doc.get("asset"), dict) \
+        else None
+    if isinstance(generator, str):
+        info["generator"] = generator
+
+
+def validate_file(path: str | os.PathLike, options: Options | None = None, *,
+                  overrides: dict[str, Severity | None] | None = None,
+                  max_issues: int | None = None) -> Report:
+    """Validate ``path``. ``overrides`` maps issue codes to severities (``None``: ignore)."""
+    start = time.perf_counter()
+    spath = os.fspath(path)
+    options = options or Options()
+    issues = Issues(dict(overrides or {}), max_issues)
+    report = Report(spath, issues)
+    try:
+        ctx = load_container(spath, options, issues)
+        if ctx is not None:
+            report.mime_type = GLB_MIME if ctx.document.glb else GLTF_MIME
+            report.info["bytes"] = ctx.document.size
+            with np.errstate(all="ignore"):  # overflow in hostile data is reported, not warned
+                _check_document(ctx, report.info)
+    except Exception as err:  # never crash on input; report where it happened
+        _internal(issues, err)
+    report.seconds = time.perf_counter() - start
+    return report
