@@ -13,23 +13,25 @@ are area-weighted surface samples plus Gaussian noise with σ = 0.5 × the mean 
 Methods, timed side by side on the same points:
 
 * ``gsverse_format.nearest.nearest_triangles(method="numba")``: the whole call (input checks,
-  BVH build and queries), after one warm-up call; and its queries alone on a prebuilt tree.
-  The first call of the process (numba import and compilation, or loading the on-disk cache) is
+  BVH build and queries); its BVH build alone; and its queries alone on a prebuilt tree. The
+  first call of the process (numba import and compilation, or loading the on-disk cache) is
   reported separately, and in the full run also a compilation from scratch in a subprocess.
-* Open3D ``RaycastingScene.compute_closest_points`` (float32), queries only, after a warm-up
-  call that builds its BVH (the build is reported separately). Open3D is not a dependency of
-  this package; it is only measured when it can be imported.
+* Open3D ``RaycastingScene.compute_closest_points`` (float32), queries only; its BVH is built
+  before (the build is reported separately). Open3D is not a dependency of this package; it is
+  only measured when it can be imported.
 * ``trimesh.proximity.closest_point`` on a subset of the points (per-point cost extrapolated);
   its R-tree is built before timing.
+
+After one untimed call of each, the methods are timed in rounds: every round calls each of them
+once, back to back, so that all see the same load on a shared machine. The table gives the
+median over rounds during which other processes used less than a quarter of a core (over all
+rounds when there were none, marked †), the best round, and the range of cores other processes
+used meanwhile. The ratio to Open3D is the median over rounds of the per-round ratio.
 
 Accuracy: distances are compared with ours (float64, certified exact). Ours is also checked to
 be bit-identical to the numpy reference implementation on a subset (``--verify`` points).
 Faces may legitimately differ where several faces are at the same distance (shared edges and
 vertices); ours returns the smallest index.
-
-Every timing is repeated; the table gives the median over repetitions during which other
-processes used less than a quarter of a core (over all repetitions when there were none, marked
-†), the best repetition, and the range of cores other processes used meanwhile.
 """
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ import time
 
 import numpy as np
 
-from .timing import Timing, measure
+from .timing import Timing, cpu_busy_seconds, measure
 
 SIGMA_EDGES = 0.5         # query noise, in mean edge lengths
 F32_EPS = 2.0 ** -24      # float32 unit roundoff
@@ -112,6 +114,30 @@ def _load(t: Timing) -> str:
     return f"{lo:.2f}-{hi:.2f}"
 
 
+def _interleaved(fns: dict, rounds: int) -> dict[str, Timing]:
+    """Time every callable once per round, in turn, so that all see the same machine load;
+    each call is its own batch (with the cores other processes used meanwhile)."""
+    out = {name: Timing() for name in fns}
+    for _ in range(rounds):
+        for name, fn in fns.items():
+            busy0, own0, t0 = cpu_busy_seconds(), _own_cpu(), time.perf_counter()
+            fn()
+            wall = time.perf_counter() - t0
+            busy1, own1 = cpu_busy_seconds(), _own_cpu()
+            other = None
+            if busy0 is not None and busy1 is not None and wall > 0:
+                other = max(0.0, ((busy1 - busy0) - (own1 - own0)) / wall)
+            out[name].samples.append(wall)
+            out[name].batches.append({"samples": [wall], "other": other,
+                                      "own": (own1 - own0) / wall if wall > 0 else float("nan")})
+    return out
+
+
+def _own_cpu() -> float:
+    tm = os.times()
+    return tm.user + tm.system
+
+
 def _compile_from_scratch() -> float | None:
     """Seconds to import and compile the kernels in a fresh process with an empty cache."""
     with tempfile.TemporaryDirectory() as tmp:
@@ -169,7 +195,7 @@ def main(argv: list[str] | None = None) -> int:
     rows = []          # method, Mpts/s median, best, threads, exact, max diff, agreement, load
     notes = []
 
-    # ---- ours
+    # ---- setup of every method (untimed warm-up calls), then interleaved timing rounds
     t0 = time.perf_counter()
     import numba
 
@@ -178,42 +204,14 @@ def main(argv: list[str] | None = None) -> int:
     nearest_fast.warm_up()
     first_call = time.perf_counter() - t0
     threads = numba.get_num_threads()
-    result = {}
-
-    def ours_full():
-        result["r"] = nearest_triangles(p, v, f, method="numba")
-
-    t_full = measure(ours_full, repeat=1, batches=repeat, warmup=1)
-    ref = result["r"]
     idx = np.arange(len(f))
-    t_build = measure(lambda: result.__setitem__("tree", nearest_fast.build_tree(v, f, idx)),
-                      repeat=1, batches=repeat, warmup=0)
-    tree = result["tree"]
-    t_query = measure(lambda: nearest_fast.query_tree(tree, p), repeat=1, batches=repeat, warmup=0)
-
-    exact = "certified float64"
-    if n_ver:
-        sub = np.random.default_rng(2).choice(n, n_ver, replace=False)
-        numpy_ref = nearest_triangles(p[sub], v, f, method="numpy")
-        same = all(np.array_equal(getattr(numpy_ref, k), getattr(ref, k)[sub])
-                   for k in ("face", "distance", "closest", "barycentric"))
-        exact += f"; {'identical' if same else 'DIFFERS'} to numpy reference on {n_ver:,} pts"
-    med, best = _fmt_rate(t_full, n)
-    rows.append(["ours, `nearest_triangles` (checks + BVH build + queries)", med, best, threads,
-                 exact, "0 (reference)", "100%", _load(t_full)])
-    med, best = _fmt_rate(t_query, n)
-    rows.append(["ours, queries only (BVH prebuilt)", med, best, threads, "same", "0", "100%",
-                 _load(t_query)])
-    notes.append(f"ours: BVH build {t_build.median:.3f} s (best {t_build.best:.3f}); first call in "
-                 f"this process (numba import + compile or cache load) {first_call:.2f} s")
-    if not quick and not args.no_compile_time:
-        scratch = _compile_from_scratch()
-        notes.append("ours: compilation from an empty cache (fresh process, import included): "
-                     + (f"{scratch:.1f} s" if scratch is not None else "failed to measure"))
-    scale = np.abs(v).max() + np.abs(p).max(axis=1)
-
-    # ---- Open3D
-    t_o3d = None
+    state: dict = {}
+    timed = {
+        "full": lambda: state.__setitem__("ref", nearest_triangles(p, v, f, method="numba")),
+        "build": lambda: state.__setitem__("tree", nearest_fast.build_tree(v, f, idx)),
+        "query": lambda: nearest_fast.query_tree(state["tree"], p),
+    }
+    o3d = None
     try:
         import open3d as o3d
     except Exception as exc:                       # not installed, or a missing system library
@@ -225,23 +223,50 @@ def main(argv: list[str] | None = None) -> int:
         scene = o3d.t.geometry.RaycastingScene()
         scene.add_triangles(o3d.core.Tensor(v.astype(np.float32)),
                             o3d.core.Tensor(f.astype(np.uint32)))
-        pts = o3d.core.Tensor(p.astype(np.float32))
         scene.compute_closest_points(o3d.core.Tensor(p[:1].astype(np.float32)))   # builds BVH
-        o3d_build = time.perf_counter() - tb
-        out = {}
-        t_o3d = measure(lambda: out.__setitem__("r", scene.compute_closest_points(pts)),
-                        repeat=1, batches=repeat, warmup=1)
-        cp = out["r"]["points"].numpy().astype(np.float64)
-        fid = out["r"]["primitive_ids"].numpy().astype(np.int64)
+        notes.append(f"Open3D: scene + BVH build {time.perf_counter() - tb:.3f} s (not in its rate)")
+        pts = o3d.core.Tensor(p.astype(np.float32))
+        timed["open3d"] = lambda: state.__setitem__("o3d", scene.compute_closest_points(pts))
+    for fn in timed.values():                      # warm-up (JIT cache, first-touch memory)
+        fn()
+    t = _interleaved(timed, repeat)
+    ref = state["ref"]
+
+    # ---- ours
+    exact = "certified float64"
+    if n_ver:
+        sub = np.random.default_rng(2).choice(n, n_ver, replace=False)
+        numpy_ref = nearest_triangles(p[sub], v, f, method="numpy")
+        same = all(np.array_equal(getattr(numpy_ref, k), getattr(ref, k)[sub])
+                   for k in ("face", "distance", "closest", "barycentric"))
+        exact += f"; {'identical' if same else 'DIFFERS'} to numpy reference on {n_ver:,} pts"
+    med, best = _fmt_rate(t["full"], n)
+    rows.append(["ours, `nearest_triangles` (checks + BVH build + queries)", med, best, threads,
+                 exact, "0 (reference)", "100%", _load(t["full"])])
+    med, best = _fmt_rate(t["query"], n)
+    rows.append(["ours, queries only (BVH prebuilt)", med, best, threads, "same", "0", "100%",
+                 _load(t["query"])])
+    notes.append(f"ours: BVH build {t['build'].median:.3f} s (best {t['build'].best:.3f}); first "
+                 f"call in this process (numba import + compile or cache load) {first_call:.2f} s")
+    if not quick and not args.no_compile_time:
+        scratch = _compile_from_scratch()
+        notes.append("ours: compilation from an empty cache (fresh process, import included): "
+                     + (f"{scratch:.1f} s" if scratch is not None else "failed to measure"))
+    scale = np.abs(v).max() + np.abs(p).max(axis=1)
+
+    # ---- Open3D
+    if o3d is not None:
+        out = state["o3d"]
+        cp = out["points"].numpy().astype(np.float64)
+        fid = out["primitive_ids"].numpy().astype(np.int64)
         d = np.linalg.norm(p - cp, axis=1)
         diff = np.abs(d - ref.distance)
         ok = bool(np.all(diff <= 8 * F32_EPS * scale))
-        med, best = _fmt_rate(t_o3d, n)
+        med, best = _fmt_rate(t["open3d"], n)
         rows.append([f"Open3D {o3d.__version__} `compute_closest_points` (float32, queries only)",
                      med, best, cpus,
                      "to float32 rounding" if ok else "no", f"{diff.max():.1e}",
-                     f"{np.mean(fid == ref.face):.2%}", _load(t_o3d)])
-        notes.append(f"Open3D: scene + BVH build {o3d_build:.3f} s (not in its rate)")
+                     f"{np.mean(fid == ref.face):.2%}", _load(t["open3d"])])
 
     # ---- trimesh
     try:
@@ -277,19 +302,20 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         print("| " + " | ".join(str(x) for x in r) + " |")
     print()
-    if t_o3d is not None:
-        e2e = t_o3d.median / t_full.median
-        qq = t_o3d.median / t_query.median
-        print(f"ratio ours / Open3D (throughput, medians): {e2e:.2f}x with our whole call "
-              f"(BVH build included) against Open3D's queries alone; {qq:.2f}x queries against "
-              f"queries (best repetitions: {t_o3d.best / t_full.best:.2f}x and "
-              f"{t_o3d.best / t_query.best:.2f}x)")
+    if o3d is not None:
+        full, query, other = t["full"].samples, t["query"].samples, t["open3d"].samples
+        r_full = np.median(np.array(other) / np.array(full))
+        r_query = np.median(np.array(other) / np.array(query))
+        print(f"ratio ours / Open3D (throughput; median over {len(full)} rounds in which every "
+              f"method ran once, back to back): **{r_full:.2f}x** with our whole call (input "
+              f"checks and BVH build included) against Open3D's queries alone; {r_query:.2f}x "
+              f"queries against queries")
     else:
         print("ratio ours / Open3D: not measured (Open3D not importable)")
     print()
     for note in notes:
         print(f"- {note}")
-    if any(t.contended for t in [t_full, t_query] + ([t_o3d] if t_o3d else [])):
+    if any("†" in str(r[1]) for r in rows):
         print("- † other processes kept at least a quarter of a core busy during every "
               "repetition of this row: the machine was not quiet, rates are pessimistic")
     return 0
