@@ -38,18 +38,42 @@ print(t1 - t0, time.perf_counter() - t1)
 """
 
 
+def _vm_hwm_kib(pid: int) -> int | None:
+    try:
+        with open(f"/proc/{pid}/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except (OSError, ValueError):
+        pass
+    return None
+
+
 def run_process(args: list[str], cwd: str | None = None, env: dict | None = None) -> dict:
-    """Run a command; wall seconds, exit status, peak RSS (MiB) and its output."""
+    """Run a command; wall seconds, exit status, peak RSS (MiB) and its output.
+
+    The peak is the child's own high-water mark (``VmHWM`` in ``/proc/<pid>/status``, polled
+    every 20 ms until it exits). ``ru_maxrss`` from ``wait4`` is not used: on Linux a child
+    started by fork/exec inherits the parent's peak in it.
+    """
     t0 = time.perf_counter()
+    peak = None
     with tempfile.TemporaryFile() as out:
         p = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=cwd, env=env)
-        _, status, usage = os.wait4(p.pid, 0)
+        while True:
+            pid, status, usage = os.wait4(p.pid, os.WNOHANG)
+            if pid:
+                break
+            hwm = _vm_hwm_kib(p.pid)
+            if hwm is not None:
+                peak = hwm if peak is None else max(peak, hwm)
+            time.sleep(0.02)
         p.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - t0
         out.seek(0)
         text = out.read().decode("utf-8", "replace")
-    rss_kib = usage.ru_maxrss  # Linux: KiB
-    return {"wall_s": wall, "rc": p.returncode, "peak_rss_mb": rss_kib / 1024.0, "output": text}
+    return {"wall_s": wall, "rc": p.returncode,
+            "peak_rss_mb": (peak / 1024.0) if peak is not None else float("nan"), "output": text}
 
 
 def run(quick: bool = False, log=print, workdir: str | None = None) -> dict:

@@ -204,7 +204,7 @@ def run(quick: bool = False, log=print) -> dict:
                 # The headline rows wait (up to a few minutes) for quiet moments on a busy machine.
                 t = measure(lambda: fast.remap(verts), repeat=reps, batches=3,
                             retry_contended=1 if quick else 6, min_quiet=0 if quick else 3,
-                            max_wait_s=0 if quick else (240 if case == "local/affine" else 60))
+                            max_wait_s=0 if quick else (240 if case == "local/affine" else 120))
                 result["rows"].append(_row(case, "fast path (numba, float32)", th, n, t,
                                            fast.bytes_per_splat, bw[th], check=check))
                 tf = measure(lambda: fast.face_pass(verts), repeat=reps, batches=2,
@@ -214,14 +214,16 @@ def run(quick: bool = False, log=print) -> dict:
                     fast_r = FastRemapper(anchoring, backend="numba", rotations=True)
                     fast_r.remap(verts)
                     t = measure(lambda: fast_r.remap(verts), repeat=reps, batches=2,
-                                retry_contended=0 if quick else 2)
+                                retry_contended=0 if quick else 2, min_quiet=0 if quick else 2,
+                                max_wait_s=0 if quick else 60)
                     result["rows"].append(_row(case, "fast path + rotations/scales", th, n, t,
                                                fast_r.bytes_per_splat, bw[th]))
                 if case == "games":
                     fast_g = FastRemapper(anchoring, backend="numba", rotations=True)
                     fast_g.remap(verts)
                     t = measure(lambda: fast_g.remap(verts), repeat=reps, batches=2,
-                                retry_contended=0 if quick else 2)
+                                retry_contended=0 if quick else 2, min_quiet=0 if quick else 2,
+                                max_wait_s=0 if quick else 60)
                     result["rows"].append(_row(case, "fast path + rotations/scales", th, n, t,
                                                fast_g.bytes_per_splat, bw[th]))
             finally:
@@ -238,7 +240,7 @@ def run(quick: bool = False, log=print) -> dict:
                         retry_contended=0 if quick else 2)
             result["rows"].append(_row(case, "fast path (numba, float32)", threads_all, n, t,
                                        fast.bytes_per_splat, bw[threads_all], order="random"))
-        del fast, out
+        fast = out = None  # release the buffers before the next case
     result["seconds"] = time.perf_counter() - t_start
     target = [r for r in result["rows"] if r["case"] == "local/affine" and r["impl"].startswith("fast path (")
               and r["threads"] == threads_all and r["order"] == "by face"]

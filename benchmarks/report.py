@@ -202,6 +202,9 @@ def plot_pareto(acc: dict, out: Path, magnitude: int) -> str | None:
             ax.step(xs[front], ys[front], where="post", color="k", lw=1, alpha=0.6)
         if logx:
             ax.set_xscale("log")
+            from matplotlib.ticker import NullFormatter
+
+            ax.xaxis.set_minor_formatter(NullFormatter())
         ax.set_yscale("log")
         ax.set_xlabel(label)
     axes[0].set_ylabel(f"worst p99 W₂ / splat size (magnitude {magnitude})")
@@ -333,10 +336,9 @@ def _external_md(title: str, ext: dict | None, command: str) -> list[str]:
     L.append("")
     text = ext["output"].strip()
     lines = [ln for ln in text.splitlines() if "TBB" not in ln and "warnings.warn" not in ln]
-    text = "\n".join(lines)
-    if text.startswith("#"):
-        text = "#" + text          # demote its heading one level
-    L.append(text)
+    # Its own headings become sub-headings of this section.
+    lines = ["##" + ln if ln.startswith("#") else ln for ln in lines]
+    L.append("\n".join(lines))
     L.append("")
     return L
 
@@ -453,7 +455,7 @@ def _acc_md(acc: dict, plots: dict) -> list[str]:
     for p in sorted(pts, key=lambda p: p["error"]):
         rows.append([p["profile"], f"{p['faces']:,}", p["quant"], _f(p["error"]), p["worst"],
                      _f(p.get("remap_ms")), _f(p["anchor_bytes"])])
-    L.append(_table(["profile", "faces", "anchors", f"worst p99 W₂/size", "worst φ",
+    L.append(_table(["profile", "faces", "anchors", "worst p99 W₂/size", "worst φ",
                      "remap ms (1 thread)", "anchor bytes/splat"], rows))
     L.append("")
     if plots.get("pareto.png"):

@@ -32,16 +32,19 @@ checked by ``tests/test_remap_fast.py`` and ``tests/test_stability.py``):
 
 * means: ``|Δμ| <= 16 u (|v0| + |b1| |e1| + |b2| |e2| + |d| k)``;
 * ``local`` covariances: ``‖ΔΣ‖_F <= 64 u ‖A‖_F² ‖L‖_F²`` (``‖L‖_F² = Σ s_l²``, the trace of
-  the rest covariance). For deformations with condition number κ(A) this is a relative error of
-  at most about ``64 u κ²``; the tests also see ``‖ΔΣ‖_F / ‖Σ‖_F <= 1e-5`` for stretches and
-  compressions up to 10×.
+  the rest covariance). Relative to ‖Σ‖_F this is at most ``576 u κ(A)²`` (κ the condition
+  number of A; ‖A‖_F² ≤ 3‖A‖₂², ‖L‖_F² ≤ 3‖L‖₂², ‖Σ‖_F ≥ σ_min(A)² ‖L‖₂²); the tests also
+  check ``‖ΔΣ‖_F / ‖Σ‖_F <= 1e-5`` for stretches and compressions up to 10×.
 * ``games`` covariances: ``‖ΔΣ‖_F <= 64 u Σ_j scale_j²``.
 
-Splats are processed in the order given. Files store them sorted by face (spec §Ordering); for
-such splats (``local`` profile, no rotation output) steps 2 and 3 are fused into one parallel
-pass over runs of splats that share a face, so each face's values stay in registers and no
-table is written or read. Other orders use the two passes; random order costs about 2× at
-100k faces. Both give bit-identical results.
+Splats are processed in the order given. Files store them sorted by face (spec §Ordering), which
+keeps the per-face table in cache; random order costs several times more at 100k faces. (A
+variant fusing steps 2 and 3 into one pass over runs of splats sharing a face was measured and
+was no faster.)
+
+Determinism: every per-splat result depends only on that splat's anchors and its face, not on
+the order of the splats or the number of threads; the ``local`` splat pass spells out its fused
+multiply-adds so that the compiler cannot round differently in different builds of the loop.
 
 Selection: :func:`remap_auto` and ``FastRemapper(backend="auto")`` use numba when it can be
 imported and otherwise the numpy reference (whose float64 result is then stored in the same
@@ -74,7 +77,6 @@ COV_BOUND_FACTOR = 64.0
 
 _COV6_INDEX = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 _TABLE_WIDTH = 24  # float32 per face (96 bytes)
-_CHUNKS = 256      # work units of the fused pass (face ranges of about equal splat counts)
 
 try:  # pragma: no cover - exercised whichever way the environment is set up
     import numba
@@ -136,8 +138,8 @@ if numba is not None:
     _EPS_DEG = EPS_DEGENERATE
     _GEPS = GAMES_EPS
     _GEPS32 = np.float32(GAMES_EPS)
-    # Splat passes may fuse multiply-adds (one rounding instead of two); nothing else of
-    # fast-math (no reassociation, NaN/Inf assumptions) is allowed.
+    # The games splat pass may fuse multiply-adds (one rounding instead of two); nothing else
+    # of fast-math (no reassociation, NaN/Inf assumptions) is allowed anywhere.
     _CONTRACT = {"contract"}
 
     from numba.extending import intrinsic as _intrinsic
@@ -146,9 +148,9 @@ if numba is not None:
     def _fma(typingctx, a, b, c):  # pragma: no cover - compiled
         """a·b + c with one rounding (LLVM ``llvm.fma``; a hardware FMA on current CPUs).
 
-        The ``local`` splat kernels spell out every fused multiply-add instead of letting the
-        compiler contract expressions, so the fused and the two-pass kernels (and any
-        vectorization of them) round identically: their results are bit-identical.
+        The ``local`` splat pass spells out every fused multiply-add instead of letting the
+        compiler contract expressions (which it may do differently in differently vectorized
+        copies of a loop): the rounding is fixed by the source.
         """
         sig = a(a, b, c)
 
@@ -367,43 +369,6 @@ if numba is not None:
                 qface[f, 3] = qw
 
     @njit(parallel=True, cache=True)
-    def _local_fused(vertices, faces, rest, rigid, chunks, starts, consts, means, cov6):  # pragma: no cover
-        """One pass for face-sorted splats: each face's frame and A are computed (float64,
-        rounded to float32) and kept in registers for the run of splats on that face.
-
-        ``starts`` (F + 1,): splats of face f are ``starts[f]:starts[f + 1]``; ``chunks``: face
-        ranges of about equal splat counts, processed in parallel.
-        """
-        for ch in prange(chunks.shape[0] - 1):
-            for f in range(chunks[ch], chunks[ch + 1]):
-                s0 = starts[f]
-                s1 = starts[f + 1]
-                if s0 == s1:
-                    continue
-                (x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, k, tx, ty, tz, bx, by, bz, nx, ny, nz,
-                 a00, a01, a02, a10, a11, a12, a20, a21, a22) = _local_face(vertices, faces, rest, rigid, f)
-                X0, Y0, Z0 = np.float32(x0), np.float32(y0), np.float32(z0)
-                E1x, E1y, E1z = np.float32(e1x), np.float32(e1y), np.float32(e1z)
-                E2x, E2y, E2z = np.float32(e2x), np.float32(e2y), np.float32(e2z)
-                Nx, Ny, Nz = np.float32(k * nx), np.float32(k * ny), np.float32(k * nz)
-                A00, A01, A02 = np.float32(a00), np.float32(a01), np.float32(a02)
-                A10, A11, A12 = np.float32(a10), np.float32(a11), np.float32(a12)
-                A20, A21, A22 = np.float32(a20), np.float32(a21), np.float32(a22)
-                for i in range(s0, s1):
-                    mx, my, mz, s00, s01, s02, s11, s12, s22 = _local_splat(
-                        consts[i], X0, Y0, Z0, E1x, E1y, E1z, E2x, E2y, E2z, Nx, Ny, Nz,
-                        A00, A01, A02, A10, A11, A12, A20, A21, A22)
-                    means[i, 0] = mx
-                    means[i, 1] = my
-                    means[i, 2] = mz
-                    cov6[i, 0] = s00
-                    cov6[i, 1] = s01
-                    cov6[i, 2] = s02
-                    cov6[i, 3] = s11
-                    cov6[i, 4] = s12
-                    cov6[i, 5] = s22
-
-    @njit(parallel=True, cache=True)
     def _local_splats(face, consts, table, means, cov6):  # pragma: no cover
         """Per-splat pass of the ``local`` profile (float32).
 
@@ -609,7 +574,6 @@ class FastRemapper:
         self.n_splats = len(anchors)
         self.n_faces = mesh.face_count
         self.n_vertices = len(mesh.vertices)
-        self.fused = False
         self._rest = None
         self._out = self.allocate()
         if self.backend == "numpy":
@@ -635,15 +599,6 @@ class FastRemapper:
             [anchors.barycentrics, anchors.normal_offset[:, None], lmat.reshape(-1, 9)],
             axis=1), dtype=np.float32)
         self._qface = np.zeros((self.n_faces if self.rotations else 0, 4), np.float32)
-        # Face-sorted splats (as files store them) take the fused single pass.
-        face = self._face
-        self.fused = not self.rotations and bool(np.all(face[1:] >= face[:-1]))
-        if self.fused:
-            self._starts = np.searchsorted(face, np.arange(self.n_faces + 1)).astype(np.int64)
-            targets = np.linspace(0, self.n_splats, _CHUNKS + 1)
-            chunks = np.searchsorted(self._starts, targets, side="left").astype(np.int64)
-            chunks[0], chunks[-1] = 0, self.n_faces
-            self._chunks = np.maximum.accumulate(chunks)
         if self.rotations:
             self._qlocal = np.ascontiguousarray(q_l, dtype=np.float32)
             self._slocal = np.ascontiguousarray(anchors.local_scale, dtype=np.float32)
@@ -692,10 +647,6 @@ class FastRemapper:
             else:
                 _games_splats(self._face, self._consts, self._table, out.means, out.cov6,
                               _EMPTY4, _EMPTY3)
-            return out
-        if self.fused:
-            _local_fused(v, self._faces, self._rest_table, self.law == "rigid", self._chunks,
-                         self._starts, self._consts, out.means, out.cov6)
             return out
         _local_faces(v, self._faces, self._rest_table, self.law == "rigid", self._table, self._qface)
         _local_splats(self._face, self._consts, self._table, out.means, out.cov6)

@@ -11,7 +11,7 @@ fast path must give:
   float32 result (u = 2⁻²⁴, its unit roundoff) and >= −1e-12 ‖Σ‖_F for the float64 one;
 * unit quaternions (|‖q‖ − 1| <= 1e-6);
 * deterministic results (bit-identical on repetition, with 1 or several threads, and whether
-  the splats are sorted by face — the fused single pass — or not);
+  the splats are sorted by face or not);
 * and the float32 result must lie within the stated bound of the float64 one
   (``gsverse_format.remap_fast.float32_error_bounds``):
   ``|Δμ| <= 16 u (|v0| + |b1||e1| + |b2||e2| + |d| k)``,
@@ -187,7 +187,7 @@ def _check(anchoring: Anchoring, vertices: np.ndarray) -> None:
     again = fast.remap(vertices)
     for other in (single, again):
         assert np.array_equal(out.means, other.means) and np.array_equal(out.cov6, other.cov6)
-    # Sorted by face (the fused single pass for ``local``): the same bits per splat.
+    # Sorted by face: the same bits per splat.
     order = np.argsort(anchoring.anchors.face_index, kind="stable")
     by_face = rf.FastRemapper(Anchoring(anchoring.mesh, anchoring.anchors.subset(order)),
                               backend="numba").remap(vertices)
