@@ -56,3 +56,28 @@ def max_rel_cov_error(a: np.ndarray, b: np.ndarray) -> float:
     num = np.linalg.norm(a - b, axis=(1, 2))
     den = np.linalg.norm(b, axis=(1, 2))
     return float(np.max(num / den))
+
+
+def extension_schema_validator():
+    """A jsonschema validator for the shipped extension schema (spec/schema), with a stand-in
+    for Khronos' glTFProperty.schema.json (an object with optional "extensions" and "extras")."""
+    import json
+    import pathlib
+
+    import pytest
+
+    jsonschema = pytest.importorskip("jsonschema")
+    referencing = pytest.importorskip("referencing")
+    name = "primitive.KHR_gaussian_splatting.GSVERSE_gaussian_splatting_mesh_anchor.schema.json"
+    path = pathlib.Path(__file__).resolve().parents[1] / "spec" / "schema" / name
+    schema = json.loads(path.read_text())
+    gltf_property = {"$schema": "https://json-schema.org/draft/2020-12/schema",
+                     "$id": "glTFProperty.schema.json", "type": "object",
+                     "properties": {"extensions": {"type": "object",
+                                                   "additionalProperties": {"type": "object"}},
+                                    "extras": {}}}
+    registry = referencing.Registry().with_resources([
+        (uri, referencing.Resource.from_contents(s)) for uri, s in
+        [(schema["$id"], schema), ("glTFProperty.schema.json", gltf_property)]])
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema, registry=registry)

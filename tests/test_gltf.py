@@ -16,7 +16,7 @@ from gsverse_format.io.gltf import asset_to_gltf, gltf_to_bytes, read_gltf, writ
 from gsverse_format.model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
 
-from helpers import bumpy_sphere, random_splats, surface_splats
+from helpers import bumpy_sphere, random_splats, surface_splats, extension_schema_validator
 
 KHR = "KHR_gaussian_splatting"
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -427,21 +427,7 @@ def test_gltf_to_bytes_glb_container():
 # ---------------------------------------------------------------------------- JSON Schema
 
 def _schema_validator():
-    jsonschema = pytest.importorskip("jsonschema")
-    referencing = pytest.importorskip("referencing")
-    schema = json.loads((ROOT / "spec" / "schema" / SCHEMA_NAME).read_text())
-    # Stand-in for Khronos' glTFProperty.schema.json (an object with optional
-    # "extensions" object and "extras").
-    gltf_property = {"$schema": "https://json-schema.org/draft/2020-12/schema",
-                     "$id": "glTFProperty.schema.json", "type": "object",
-                     "properties": {"extensions": {"type": "object",
-                                                   "additionalProperties": {"type": "object"}},
-                                    "extras": {}}}
-    registry = referencing.Registry().with_resources([
-        (uri, referencing.Resource.from_contents(s)) for uri, s in
-        [(schema["$id"], schema), ("glTFProperty.schema.json", gltf_property)]])
-    jsonschema.Draft202012Validator.check_schema(schema)
-    return jsonschema.Draft202012Validator(schema, registry=registry)
+    return extension_schema_validator()
 
 
 def test_schema_copies_identical():

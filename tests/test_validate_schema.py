@@ -9,6 +9,8 @@ import struct
 
 import pytest
 
+from helpers import extension_schema_validator
+
 from gsverse_format.errors import FormatError
 from gsverse_format.io import gltf as G
 from gsverse_format.validators.issues import CATALOGUE
@@ -20,18 +22,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def _jsonschema_validator():
-    jsonschema = pytest.importorskip("jsonschema")
-    referencing = pytest.importorskip("referencing")
-    spec = json.loads((ROOT / "spec" / "schema" / SCHEMA_NAME).read_text())
-    gltf_property = {"$schema": "https://json-schema.org/draft/2020-12/schema",
-                     "$id": "glTFProperty.schema.json", "type": "object",
-                     "properties": {"extensions": {"type": "object",
-                                                   "additionalProperties": {"type": "object"}},
-                                    "extras": {}}}
-    registry = referencing.Registry().with_resources([
-        (uri, referencing.Resource.from_contents(s)) for uri, s in
-        [(spec["$id"], spec), ("glTFProperty.schema.json", gltf_property)]])
-    return jsonschema.Draft202012Validator(spec, registry=registry)
+    return extension_schema_validator()
 
 
 def test_schema_is_the_shipped_one():
