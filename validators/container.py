@@ -17,6 +17,7 @@ import numpy as np
 
 from gsverse_format.io import gltf as G
 
+from .context import CheckContext, Options
 from .issues import Issues
 
 __all__ = ["Options", "Context", "load_container", "GLB_MIME", "GLTF_MIME"]
@@ -26,29 +27,13 @@ GLTF_MIME = "model/gltf+json"
 
 
 @dataclass
-class Options:
-    """What the checks may read: ``max_bytes`` caps the file plus all buffers it loads,
-    ``max_data_uri_bytes`` each decoded ``data:`` URI, ``max_splats`` the splats of one
-    primitive; ``max_examples`` is how many examples an aggregated finding lists."""
-
-    max_bytes: int = G.DEFAULT_MAX_BYTES
-    max_data_uri_bytes: int | None = None
-    max_splats: int | None = None
-    max_examples: int = 5
-
-
-@dataclass
-class Context:
+class Context(CheckContext):
     """A loaded document and what the container checks found out about its parts."""
 
-    path: str
-    options: Options
-    issues: Issues
     document: G.Document
     layouts: dict[int, G.AccessorLayout] = field(default_factory=dict)
     unsupported: dict[int, G.GltfFormatError] = field(default_factory=dict)
     reported: set[int] = field(default_factory=set)
-    cache: dict = field(default_factory=dict)
 
     @property
     def doc(self) -> dict:
@@ -104,29 +89,6 @@ class Context:
         except G.GltfFormatError as err:
             self.add_error(err, pointer=f"/accessors/{layout.accessor}")
             return None
-
-    def examples(self, indices: np.ndarray, **columns: np.ndarray) -> list[dict]:
-        """Up to ``max_examples`` dicts {name: value} for the given element indices."""
-        out = []
-        for j in np.asarray(indices)[:self.options.max_examples]:
-            item: dict[str, Any] = {}
-            for name, values in columns.items():
-                v = values[j]
-                if isinstance(v, np.ndarray):
-                    item[name] = [_scalar(x) for x in v.tolist()]
-                else:
-                    item[name] = _scalar(v)
-            out.append(item)
-        return out
-
-
-def _scalar(v: Any) -> Any:
-    if isinstance(v, (np.integer, int)) and not isinstance(v, bool):
-        return int(v)
-    if isinstance(v, (np.floating, float)):
-        f = float(v)
-        return f if np.isfinite(f) else str(f)
-    return v
 
 
 def _file_problem(path: str, issues: Issues) -> bool:

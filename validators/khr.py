@@ -17,10 +17,11 @@ from gsverse_format.io import gltf as G
 from gsverse_format.model import COLOR_SPACES
 
 from .container import Context
-from .issues import TOLERANCES
+from .values import (RestPose, check_finite, check_nonnegative, check_opacities,
+                     check_unit_quaternions)
 
 __all__ = ["SplatData", "check_splat_primitive", "format_allowed", "describe_format",
-           "check_finite", "check_unit_quaternions", "check_nonnegative"]
+           "quantization_step"]
 
 KHR = G.KHR
 _SH_RE = re.compile(r"SH_DEGREE_(\d+)_COEF_(\d+)")
@@ -51,6 +52,14 @@ class SplatData:
     scales: np.ndarray | None = None
     rest_ok: bool = False
 
+    def rest_pose(self) -> RestPose | None:
+        """The stored rest pose when it is valid (``rest_ok``), else None."""
+        if not self.rest_ok:
+            return None
+        return RestPose(self.means, self.rotations, self.scales,
+                        f"{self.pointer}/attributes/POSITION",
+                        f"{self.pointer}/attributes/{tok(KHR + ':ROTATION')}")
+
 
 def tok(name: Any) -> str:
     return G.pointer_token(name)
@@ -70,49 +79,6 @@ def describe_format(layout: G.AccessorLayout) -> str:
 def quantization_step(layout: G.AccessorLayout) -> float:
     """One step of a normalized integer accessor (0 for FLOAT)."""
     return _STEP.get(layout.component_type, 0.0) if layout.normalized else 0.0
-
-
-def check_finite(ctx: Context, values: np.ndarray, pointer: str, what: str) -> bool:
-    """Report NON_FINITE_VALUE for rows of ``values`` with NaN/Inf; True when all finite."""
-    if values.dtype.kind != "f" or bool(np.isfinite(values).all()):
-        return True
-    bad = np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))
-    ctx.issues.add("NON_FINITE_VALUE", f"{what}: {bad.size} of {len(values)} elements hold NaN "
-                   f"or infinity", pointer=pointer, count=int(bad.size),
-                   examples=ctx.examples(bad, index=np.arange(len(values)), value=values))
-    return False
-
-
-def check_unit_quaternions(ctx: Context, q: np.ndarray, layout: G.AccessorLayout, pointer: str,
-                           what: str) -> bool:
-    """ROTATION_NOT_UNIT for quaternions whose length is off by more than the tolerance."""
-    tol = TOLERANCES["unit_quaternion"][0] + quantization_step(layout)
-    q64 = q.astype(np.float64)
-    norm2 = np.square(q64, out=q64) @ np.ones(q.shape[1])  # row sums, one BLAS pass
-    if len(norm2) == 0 or ((1.0 - tol) ** 2 <= norm2.min() and norm2.max() <= (1.0 + tol) ** 2):
-        return True
-    norm = np.sqrt(norm2)
-    off = np.abs(norm - 1.0)
-    bad = np.flatnonzero(off > tol)
-    if bad.size == 0:
-        return True
-    worst = bad[np.argsort(-off[bad], kind="stable")]
-    ctx.issues.add("ROTATION_NOT_UNIT", f"{what}: {bad.size} of {len(q)} quaternions are not of "
-                   f"unit length (| |q| - 1 | up to {off[bad].max():.3g}, tolerance {tol:.3g})",
-                   pointer=pointer, count=int(bad.size),
-                   examples=ctx.examples(worst, index=np.arange(len(q)), norm=norm))
-    return False
-
-
-def check_nonnegative(ctx: Context, s: np.ndarray, pointer: str, what: str) -> bool:
-    if s.size == 0 or s.min() >= 0:
-        return True
-    bad = np.flatnonzero((s < 0).any(axis=1))
-    ctx.issues.add("SCALE_NEGATIVE", f"{what}: {bad.size} of {len(s)} splats have negative "
-                   f"scales (scales are linear and MUST NOT be negative; log-scales need exp())",
-                   pointer=pointer, count=int(bad.size),
-                   examples=ctx.examples(bad, index=np.arange(len(s)), value=s))
-    return False
 
 
 def _check_properties(ctx: Context, khr: Any, pointer: str) -> None:
@@ -247,7 +213,8 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
     means, ok_m = values("POSITION")
     rotations, ok_r = values(f"{KHR}:ROTATION")
     if rotations is not None and ok_r:
-        ok_r = check_unit_quaternions(ctx, rotations, layouts[f"{KHR}:ROTATION"],
+        ok_r = check_unit_quaternions(ctx, rotations,
+                                      quantization_step(layouts[f"{KHR}:ROTATION"]),
                                       f"{pointer}/attributes/{tok(KHR + ':ROTATION')}", "ROTATION")
     scales, ok_s = values(f"{KHR}:SCALE")
     if scales is not None and ok_s:
@@ -255,14 +222,8 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
                                  "SCALE")
     opacity, ok_o = values(f"{KHR}:OPACITY")
     if opacity is not None and ok_o:
-        o = opacity[:, 0]
-        bad = np.flatnonzero((o < 0) | (o > 1)) if o.min() < 0 or o.max() > 1 else ()
-        if len(bad):
-            ctx.issues.add("OPACITY_OUT_OF_RANGE", f"OPACITY: {bad.size} of {len(o)} opacities "
-                           f"are outside [0, 1] (opacities are linear, after the sigmoid)",
-                           pointer=f"{pointer}/attributes/{tok(KHR + ':OPACITY')}",
-                           count=int(bad.size),
-                           examples=ctx.examples(bad, index=np.arange(len(o)), value=o))
+        check_opacities(ctx, opacity[:, 0], f"{pointer}/attributes/{tok(KHR + ':OPACITY')}",
+                        "OPACITY")
     for name in layouts:
         if name.startswith(KHR + ":SH_DEGREE_"):
             values(name)
