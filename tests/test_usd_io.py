@@ -973,3 +973,37 @@ def test_up_axis_and_units_are_converted(tmp_path):
     assert any("metersPerUnit" in m for m in messages)
     weird = _edit(path, 'upAxis = "Y"', 'upAxis = "X"', name="x.usda")
     _expect_read_error(weird, "upAxis")
+
+
+@pytest.mark.parametrize("arc", ["subLayers = [@../outside.usda@]",
+                                 "subLayers = [@/etc/hosts@]",
+                                 "subLayers = [@http://example.com/x.usda@]",
+                                 "subLayers = [@./link/outside.usda@]"])
+def test_composition_arcs_leaving_the_folder_are_refused(tmp_path, arc):
+    """Sublayers/references outside the file's folder are refused before USD opens them."""
+    outside = tmp_path / "outside.usda"
+    write_usd(_tiny_asset(), outside)
+    inner = tmp_path / "inner"
+    inner.mkdir()
+    (inner / "link").symlink_to(tmp_path, target_is_directory=True)
+    base = _usda(inner, _tiny_asset(), "base.usda")
+    bad = _edit(base, 'defaultPrim = "Asset"', f'defaultPrim = "Asset"\n    {arc}', "bad.usda")
+    message = _expect_read_error(bad)
+    assert "folder" in message or "URI schemes" in message or "absolute path" in message
+    assert check_usd(bad)[0].code == "LAYER_OUTSIDE_FOLDER"
+    with pytest.raises(FormatError):
+        read_usd(bad, isolate=True)
+
+
+def test_composition_arcs_inside_the_folder_are_followed(tmp_path):
+    sub = tmp_path / "parts"
+    sub.mkdir()
+    write_usd(_tiny_asset(), sub / "part.usda")
+    top = tmp_path / "top.usda"
+    top.write_text('#usda 1.0\n(\n    defaultPrim = "Asset"\n    metersPerUnit = 1\n'
+                   '    upAxis = "Y"\n    subLayers = [@./parts/part.usda@]\n)\n',
+                   encoding="utf-8")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UsdReadWarning)
+        asset = read_usd(top)
+    _assert_assets_equal(asset, read_usd(sub / "part.usda"))

@@ -22,9 +22,12 @@ _INTRO = """\
 
 `gsverse-validate FILE...` checks `.glb` and `.gltf` assets against glTF 2.0 (the parts a
 splat reader relies on), `KHR_gaussian_splatting` and this project's
-`GSVERSE_gaussian_splatting_mesh_anchor` extension ([README.md](README.md)). Reporting follows
-the Khronos glTF-Validator: every finding has a stable **code**, a **severity**, a location
-and a one-line message.
+`GSVERSE_gaussian_splatting_mesh_anchor` extension ([README.md](README.md)), and `.usda`,
+`.usdc`, `.usd` and `.usdz` files against the USD representation ([usd.md](usd.md)).
+Reporting follows the Khronos glTF-Validator: every finding has a stable **code**, a
+**severity**, a location and a one-line message. A problem that both formats can have (a
+non-unit quaternion, a degenerate anchor triangle, a rest pose off its anchors) has the same
+code, message and tolerance in both ([USD files](#usd-files)).
 
 - **Severity**: `error` (the asset violates a MUST, or cannot be read), `warning` (a SHOULD
   is violated, or something is almost certainly wrong), `info` (worth knowing, may be
@@ -32,7 +35,10 @@ and a one-line message.
   `--severity CODE=LEVEL` raises or lowers it, `--ignore CODE` drops it.
 - **Location**: a JSON pointer (RFC 6901) into the glTF JSON, for example
   `/meshes/0/primitives/0/attributes/KHR_gaussian_splatting:ROTATION`, or, for GLB container
-  problems, a byte `offset` into the file. Patterns below write `{m}`, `{p}`, `{i}` for
+  problems, a byte `offset` into the file. In USD files it is a USD path: a prim
+  (`/Asset/body`), a property (`/Asset/body.gsverse:anchor:faceIndices`) or `""` for the
+  root layer's metadata; patterns write `{prim}` for the splat prim, `{mesh}` for its anchor
+  `Mesh`. Patterns below write `{m}`, `{p}`, `{i}` for
   indices; `…/GSVERSE` abbreviates
   `/meshes/{m}/primitives/{p}/extensions/KHR_gaussian_splatting/extensions/GSVERSE_gaussian_splatting_mesh_anchor`.
 - **Aggregation**: problems of individual splats or triangles are reported once per
@@ -49,11 +55,13 @@ gsverse-validate FILE... [--format text|json] [-q] [--severity CODE=LEVEL]... [-
 ```
 
 - Exit status: **0** no file has errors, **1** some file has errors, **2** bad usage or a file
-  that could not be read at all (`IO_ERROR`, `FILE_TYPE_UNSUPPORTED`).
+  that could not be read at all (`IO_ERROR`, `FILE_TYPE_UNSUPPORTED`, `USD_UNREADABLE`,
+  `USD_SUPPORT_MISSING`).
 - `--format json` prints `{"validator", "validatorVersion", "reports": [...]}`; each report
   has `uri`, `mimeType`, `issues` (`numErrors`, `numWarnings`, `numInfos`, `numHints`,
-  `messages` with `code`, `severity`, `message`, `pointer` or `offset`, and `count`/`examples`
-  when aggregated, `truncated`), `info` (splat and primitive counts) and `exitStatus`.
+  `messages` with `code`, `severity`, `message`, `pointer` or `offset` (USD files: `usdPath`),
+  and `count`/`examples` when aggregated, `truncated`), `info` (splat and primitive counts)
+  and `exitStatus`.
 - `--config FILE` reads Khronos-style settings: `{"severityOverrides": {"CODE": "warning"},
   "ignoredIssues": ["CODE"], "maxIssues": 100}`.
 - Caps: `--max-bytes` (file plus every buffer it loads; default 8 GiB), `--max-data-uri-bytes`
@@ -63,6 +71,22 @@ gsverse-validate FILE... [--format text|json] [-q] [--severity CODE=LEVEL]... [-
 ## Tolerances
 
 | name | value | meaning |
+|---|---|---|
+"""
+
+_USD_INTRO = """
+## USD files
+
+USD files are opened with usd-core in a child process (a file that crashes or exhausts the USD
+library becomes `USD_UNREADABLE`), after checking that no sublayer, reference or payload leaves
+the file's folder (`USD_LAYER_OUTSIDE_FOLDER`). They get the `USD_*` codes above (the checks of
+[usd.md](usd.md) §Reading and the writer rules, plus every `pxr.UsdValidation` validator) and
+the codes of the same checks on glTF data, listed here with their USD locations. Prims without
+a GsVerse API schema are foreign data (`USD_PLAIN_SPLATS`): readers repair some of their values
+([usd.md](usd.md) §Foreign data) and the writer rules do not bind their authors, so the codes
+with a foreign severity report at that severity for them.
+
+| code | USD location | severity (foreign prims) |
 |---|---|---|
 """
 
@@ -112,8 +136,15 @@ def render_markdown() -> str:
         for c in infos:
             flags = " (fatal)" if c.fatal else ""
             flags += " (exit 2)" if c.unreadable else ""
+            if c.foreign_severity is not None:
+                flags += f" ({c.foreign_severity.label} for foreign prims)"
             out.append(f"| `{c.code}` | {c.severity.label}{flags} | {_cell(c.trigger)} | "
                        f"{_pointer(c.pointer)} | {_cell(c.fix)} |\n")
+    out.append(_USD_INTRO)
+    for c in CATALOGUE.values():
+        if c.usd and c.group != "USD":
+            foreign = c.foreign_severity or c.severity
+            out.append(f"| `{c.code}` | {_cell(c.usd)} | {c.severity.label} ({foreign.label}) |\n")
     out.append(_OUTRO)
     return "".join(out)
 

@@ -1,4 +1,4 @@
-"""``gsverse-validate FILE...``: validate glTF/GLB splat assets.
+"""``gsverse-validate FILE...``: validate glTF/GLB and USD splat assets.
 
 Exit status: 0 when no file has errors, 1 when some file has errors, 2 for bad usage or a file
 that could not be read at all. Severities can be raised, lowered or ignored per code
@@ -52,11 +52,12 @@ def _count(text: str) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog=VALIDATOR_NAME,
-        description="Validate mesh-anchored Gaussian splat assets (.glb, .gltf): container, "
-                    "KHR_gaussian_splatting, GSVERSE_gaussian_splatting_mesh_anchor, anchor "
-                    "mesh and rest-pose consistency. Exit status 0: no errors, 1: errors, "
-                    "2: bad usage or unreadable file.")
-    p.add_argument("files", nargs="*", metavar="FILE", help=".glb or .gltf files")
+        description="Validate mesh-anchored Gaussian splat assets (.glb, .gltf; .usda, .usdc, "
+                    ".usd, .usdz): container, KHR_gaussian_splatting, "
+                    "GSVERSE_gaussian_splatting_mesh_anchor or its USD schema, anchor mesh and "
+                    "rest-pose consistency. Exit status 0: no errors, 1: errors, 2: bad usage "
+                    "or unreadable file.")
+    p.add_argument("files", nargs="*", metavar="FILE", help=".glb, .gltf or USD files")
     p.add_argument("--format", choices=("text", "json"), default="text",
                    help="report format (default: text)")
     p.add_argument("-q", "--quiet", action="store_true",
@@ -74,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-examples", type=_count, default=5, metavar="N",
                    help="examples listed per aggregated finding (default: 5)")
     p.add_argument("--max-bytes", type=parse_size, metavar="SIZE",
-                   help="cap on the file plus the buffers it loads (default: 8G)")
+                   help="cap on the file plus the buffers it loads (USD: the file; default: 8G)")
     p.add_argument("--max-data-uri-bytes", type=parse_size, metavar="SIZE",
                    help="cap on each decoded data: URI (default: only --max-bytes)")
     p.add_argument("--max-splats", type=_count, metavar="N",

@@ -20,7 +20,7 @@ from gsverse_format.io import gltf as G
 from .context import CheckContext, Options
 from .issues import Issues
 
-__all__ = ["Options", "Context", "load_container", "GLB_MIME", "GLTF_MIME"]
+__all__ = ["Options", "Context", "load_container", "file_problem", "GLB_MIME", "GLTF_MIME"]
 
 GLB_MIME = "model/gltf-binary"
 GLTF_MIME = "model/gltf+json"
@@ -91,8 +91,10 @@ class Context(CheckContext):
             return None
 
 
-def _file_problem(path: str, issues: Issues) -> bool:
-    """Report a file that cannot be validated at all; True when there is one."""
+def file_problem(path: str, issues: Issues, accepted: tuple[str, ...] = (".glb", ".gltf")) -> bool:
+    """Report a file that cannot be validated at all; True when there is one.
+
+    A file is accepted by its suffix (``accepted``), or when it starts with the GLB magic."""
     if not os.path.exists(path):
         issues.add("IO_ERROR", "file not found")
         return True
@@ -100,7 +102,7 @@ def _file_problem(path: str, issues: Issues) -> bool:
         issues.add("IO_ERROR", "is a folder, not a file")
         return True
     ext = os.path.splitext(path)[1].lower()
-    if ext not in (".glb", ".gltf"):
+    if ext not in accepted:
         try:
             with open(path, "rb") as handle:
                 magic = handle.read(4)
@@ -109,7 +111,8 @@ def _file_problem(path: str, issues: Issues) -> bool:
             return True
         if magic != b"glTF":
             issues.add("FILE_TYPE_UNSUPPORTED", f"unsupported file type "
-                       f"{ext or '(no extension)'}: expected a .glb or .gltf file")
+                       f"{ext or '(no extension)'}: expected a .glb, .gltf, .usda, .usdc, .usd "
+                       f"or .usdz file")
             return True
     return False
 
@@ -117,7 +120,7 @@ def _file_problem(path: str, issues: Issues) -> bool:
 def load_container(path: str, options: Options, issues: Issues) -> Context | None:
     """Parse ``path`` and check everything below the meshes; ``None`` when the file could not
     be parsed (the reason is reported)."""
-    if _file_problem(path, issues):
+    if file_problem(path, issues):
         return None
     glb_issues: list[tuple[str, str, int]] = []
     try:

@@ -11,7 +11,7 @@ from it (:mod:`gsverse_format.validators.catalogue`) and a test keeps the two id
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 __all__ = ["Severity", "CodeInfo", "CATALOGUE", "Finding", "Issues", "TOLERANCES",
@@ -57,6 +57,10 @@ class CodeInfo:
     fix: str
     fatal: bool = False  # validation of the file stops after it
     unreadable: bool = False  # the file could not be validated at all (exit status 2)
+    #: The default severity for foreign USD prims (no GsVerse API schema), when it differs.
+    foreign_severity: Severity | None = None
+    #: Where the code points in a USD file, for codes shared with glTF ("" if not reported).
+    usd: str = ""
 
 
 #: Numerical tolerances used by the checks (documented in ``spec/validation.md``).
@@ -92,14 +96,15 @@ _EXT = _PRIM + "/extensions/KHR_gaussian_splatting/extensions/GSVERSE_gaussian_s
 _ENTRIES = [
     # -- file ------------------------------------------------------------------------
     _c("IO_ERROR", E, "File", "The file does not exist, is a folder, or cannot be read.",
-       "none", "Pass a readable .glb or .gltf file.", fatal=True, unreadable=True),
-    _c("FILE_TYPE_UNSUPPORTED", E, "File", "The file name does not end in .glb or .gltf and "
-       "the file does not start with the GLB magic.", "none",
-       "Validate glTF assets only (convert other formats with gsverse-convert).",
+       "none", "Pass a readable .glb, .gltf or USD file.", fatal=True, unreadable=True),
+    _c("FILE_TYPE_UNSUPPORTED", E, "File", "The file name does not end in .glb, .gltf, .usda, "
+       ".usdc, .usd or .usdz and the file does not start with the GLB magic.", "none",
+       "Validate glTF and USD assets only (convert other formats with gsverse-convert).",
        fatal=True, unreadable=True),
     _c("SIZE_LIMIT_EXCEEDED", E, "File", "The file plus the buffers it loads exceed "
        "--max-bytes (checked before anything is allocated). When the file itself is too large "
-       "validation stops; a buffer that would pass the limit is not loaded.", "none or /buffers/{i}/uri",
+       "validation stops; a buffer that would pass the limit is not loaded. (USD: the file "
+       "itself.)", "none or /buffers/{i}/uri",
        "Raise --max-bytes if the asset is legitimately that large."),
     _c("SPLAT_COUNT_LIMIT", E, "File", "A splat primitive declares more splats than "
        "--max-splats; its data are not read.", _PRIM + "/attributes/POSITION",
@@ -334,11 +339,177 @@ _ENTRIES = [
        "the worst splats. Checked only when the splat and anchor data are otherwise valid.",
        _PRIM + "/attributes/KHR_gaussian_splatting:ROTATION",
        "Re-bind the splats, or store the remapped rest pose."),
+    # -- USD -------------------------------------------------------------------------
+    _c("USD_SUPPORT_MISSING", E, "USD", "A USD file was given but usd-core (the pxr modules) is "
+       "not installed.", "none", "pip install 'gsverse-format[usd]'.", fatal=True,
+       unreadable=True),
+    _c("USD_UNREADABLE", E, "USD", "The file cannot be opened as a USD stage: not USD, "
+       "truncated or corrupt (a crash or memory exhaustion of the USD library while reading "
+       "is caught and reported here).", "none", "Re-export the file.", fatal=True,
+       unreadable=True),
+    _c("USD_LAYER_OUTSIDE_FOLDER", E, "USD", "A sublayer, reference or payload (of the root "
+       "layer or of a layer it brings in) is a URI with a scheme, an absolute path, or a "
+       "relative path leaving the file's folder. The stage is not composed: nothing outside "
+       "the folder is ever opened.", "none", "Flatten the stage (usdcat --flatten) or move "
+       "the layers next to the file.", fatal=True),
+    _c("USD_TYPE_MISMATCH", E, "USD", "A property has another type than spec/usd.md declares "
+       "(for example float[] gsverse:anchor:faceIndices, or a non-array rest-pose attribute).",
+       "{prim}.{property} or {mesh}.{property}", "Author the declared type (spec/usd.md "
+       "§The schemas)."),
+    _c("USD_UP_AXIS_INVALID", E, "USD", "The stage's upAxis is neither Y nor Z.", "\"\" (the "
+       "root layer)", "Author upAxis = \"Y\"."),
+    _c("USD_UP_AXIS_MISSING", E, "USD", "The stage does not author upAxis (writers MUST "
+       "author \"Y\"; readers assume Y).", "\"\" (the root layer)", "Author upAxis = \"Y\"."),
+    _c("USD_UP_AXIS_CONVERTED", W, "USD", "The stage is Z-up; readers rotate it into +Y up.",
+       "\"\" (the root layer)", "Write +Y-up stages (glTF's frame)."),
+    _c("USD_METERS_PER_UNIT_INVALID", E, "USD", "metersPerUnit is not a positive finite "
+       "number.", "\"\" (the root layer)", "Author metersPerUnit = 1."),
+    _c("USD_METERS_PER_UNIT_MISSING", E, "USD", "The stage does not author metersPerUnit "
+       "(writers MUST author 1; readers assume metres, not USD's centimetre fallback).",
+       "\"\" (the root layer)", "Author metersPerUnit = 1."),
+    _c("USD_UNITS_CONVERTED", W, "USD", "metersPerUnit is not 1; readers scale the data to "
+       "metres.", "\"\" (the root layer)", "Write stages in metres."),
+    _c("USD_DEFAULT_PRIM_MISSING", E, "USD", "The stage has no valid defaultPrim.",
+       "\"\" (the root layer)", "Author defaultPrim naming the root Xform."),
+    _c("USD_DEFAULT_PRIM_NOT_XFORM", E, "USD", "The defaultPrim is not an Xform.",
+       "the defaultPrim", "Make the root prim an Xform."),
+    _c("USD_OUTSIDE_DEFAULT_PRIM", E, "USD", "A splat prim or anchor Mesh is not a "
+       "descendant of the defaultPrim (references to the file would miss it).",
+       "{prim} or {mesh}", "Move it under the defaultPrim."),
+    _c("USD_NESTED_GPRIM", E, "USD", "A splat prim or anchor Mesh is nested under another "
+       "Gprim (USD forbids nested Gprims).", "{prim} or {mesh}", "Make both children of an "
+       "Xform."),
+    _c("USD_PROPERTY_MISSING", E, "USD", "An anchored prim lacks a rest-pose attribute or an "
+       "attribute its profile requires, a prim with a GsVerse API schema lacks "
+       "gsverse:colorSpace, or the anchor Mesh lacks points or topology.",
+       "{prim}.{property} or {mesh}.{property}", "Author the property's default value."),
+    _c("USD_PROPERTY_EXCLUDED", E, "USD", "An anchor attribute the profile excludes is "
+       "authored (for example gsverse:anchor:rho with the local profile).",
+       "{prim}.{property}", "Remove it."),
+    _c("USD_LENGTH_MISMATCH", E, "USD", "An array of an anchored prim does not have one "
+       "element per particle (N·K SH coefficients), or faceVertexIndices is not 3 per face.",
+       "{prim}.{property} or {mesh}.faceVertexIndices", "Write one element per particle."),
+    _c("USD_SH_DEGREE_INVALID", E, "USD", "radiance:sphericalHarmonicsDegree of an anchored "
+       "prim is outside 0..3.", "{prim}.radiance:sphericalHarmonicsDegree",
+       "Author a degree in 0..3."),
+    _c("USD_SH_DEGREE_MISSING", E, "USD", "radiance:sphericalHarmonicsDegree is not authored "
+       "(its fallback 3 makes DC-only data too short for renderers).",
+       "{prim}.radiance:sphericalHarmonicsDegree", "Always author the degree.",
+       foreign_severity=W),
+    _c("USD_PROFILE_INVALID", E, "USD", "gsverse:anchor:profile of an anchored prim is "
+       "missing or neither local nor games.", "{prim}.gsverse:anchor:profile",
+       "Author \"local\" or \"games\"."),
+    _c("USD_DEFORMATION_INVALID", E, "USD", "gsverse:anchor:deformation is neither affine nor "
+       "rigid.", "{prim}.gsverse:anchor:deformation", "Author \"affine\" or \"rigid\"."),
+    _c("USD_MESH_TARGET_INVALID", E, "USD", "gsverse:anchor:mesh does not have exactly one "
+       "target, or the target is not a Mesh prim.", "{prim}.gsverse:anchor:mesh",
+       "Target the anchor Mesh."),
+    _c("USD_MESH_HOLES", E, "USD", "The anchor Mesh authors holeIndices (anchor triangles "
+       "cannot be holes).", "{mesh}.holeIndices", "Remove the faces instead."),
+    _c("USD_BOTH_APIS", E, "USD", "A prim applies both GsVerseMeshAnchorAPI and "
+       "GsVerseColorSpaceAPI (the first includes the second).", "{prim}",
+       "Apply GsVerseMeshAnchorAPI only."),
+    _c("USD_CUSTOM_PROPERTY", E, "USD", "A gsverse: property is authored as custom (it must "
+       "be the schema's property, custom = false).", "{prim}.{property}",
+       "Author it without the custom keyword."),
+    _c("USD_NOT_UNIFORM", E, "USD", "A gsverse: attribute is not uniform.",
+       "{prim}.{property}", "Author it as uniform."),
+    _c("USD_TIME_SAMPLED", E, "USD", "opacities, SH, gsverse: attributes or the anchor "
+       "topology have time samples (only positions, orientations, scales, extent and the "
+       "anchor points may be animated).", "{prim}.{property} or {mesh}.{property}",
+       "Remove the time samples."),
+    _c("USD_NO_REST_POSE", E, "USD", "A rest-pose attribute has time samples but no default "
+       "value.", "{prim}.{property}", "Author the rest pose as the default value."),
+    _c("USD_TIME_CODES_MISSING", E, "USD", "The stage has baked animation but does not author "
+       "startTimeCode, endTimeCode or timeCodesPerSecond.", "\"\" (the root layer)",
+       "Author the three time metadata."),
+    _c("USD_SORTING_MODE", E, "USD", "sortingModeHint is not authored as cameraDistance "
+       "(KHR's sortingMethod; USD's fallback is zDepth).", "{prim}.sortingModeHint",
+       "Author sortingModeHint = \"cameraDistance\".", foreign_severity=W),
+    _c("USD_PROJECTION_MODE", W, "USD", "projectionModeHint is not authored (SHOULD be "
+       "perspective).", "{prim}.projectionModeHint",
+       "Author projectionModeHint = \"perspective\"."),
+    _c("USD_HALF_PRECISION", E, "USD", "A half-precision rest-pose attribute (positionsh, "
+       "...) is authored; writers use the float ones.", "{prim}.{property}",
+       "Author the float attribute.", foreign_severity=W),
+    _c("USD_EXTENT_MISSING", E, "USD", "A splat prim or the anchor Mesh does not author "
+       "extent.", "{prim}.extent or {mesh}.extent", "Author the bounding box of the "
+       "positions.", foreign_severity=W),
+    _c("USD_EXTENT_INVALID", E, "USD", "A splat prim's extent does not contain every "
+       "position.", "{prim}.extent", "Recompute the extent.", foreign_severity=W),
+    _c("USD_XFORM_OPS", W, "USD", "A splat prim or anchor Mesh authors xformOps (splat prims "
+       "should carry none; anchoring ignores the Mesh's).", "{prim} or {mesh}",
+       "Bake the transform into the data."),
+    _c("USD_COLOR_SPACE_API_IGNORED", W, "USD", "A splat prim authors UsdColorSpaceAPI "
+       "colorSpace:name, which splat readers ignore (gsverse:colorSpace holds the KHR colour "
+       "space).", "{prim}", "Author gsverse:colorSpace instead."),
+    _c("USD_LOCAL_SCALES_REDUNDANT", H, "USD", "gsverse:anchor:localScales equals scales "
+       "(writers SHOULD NOT author it then).", "{prim}.gsverse:anchor:localScales",
+       "Remove it: readers fall back to scales."),
+    _c("USD_MESH_PURPOSE", W, "USD", "The anchor Mesh's purpose is not guide (renderers "
+       "would draw it over the splats).", "{mesh}.purpose", "Author purpose = \"guide\"."),
+    _c("USD_MESH_SUBDIVISION", W, "USD", "The anchor Mesh's subdivisionScheme is not none "
+       "(the fallback catmullClark smooths the triangles away).",
+       "{mesh}.subdivisionScheme", "Author subdivisionScheme = \"none\"."),
+    _c("USD_MESH_ORIENTATION", W, "USD", "The anchor Mesh's orientation is not rightHanded "
+       "(ignored for anchoring).", "{mesh}.orientation", "Author rightHanded."),
+    _c("USD_PLAIN_SPLATS", I, "USD", "A ParticleField3DGaussianSplat prim has no GsVerse API "
+       "schema (foreign data): it is read with colour space srgb_rec709_display, and the "
+       "writer rules give warnings, not errors, for it.", "{prim}",
+       "None for foreign data; writers of this format apply GsVerseColorSpaceAPI."),
+    _c("USD_PARTICLE_FIELD_SKIPPED", W, "USD", "A ParticleField prim that is not a "
+       "ParticleField3DGaussianSplat (another kernel or radiance model) has no "
+       "KHR_gaussian_splatting equivalent and is skipped.", "the prim",
+       "Convert it to 3D Gaussian splats first."),
+    _c("USD_EMPTY_PRIM", W, "USD", "A splat prim has no particles (no positions) and is "
+       "skipped.", "{prim}", "Remove the prim."),
+    _c("USD_REPLACED_BY_DEFAULT", W, "USD", "An array of a foreign splat prim is shorter than "
+       "required (or the SH degree negative) and is replaced by the schema's default, as USD "
+       "renderers do.", "{prim}.{property}", "Write one element per particle."),
+    _c("USD_TRUNCATED", W, "USD", "An array of a foreign splat prim is longer than required, "
+       "or its SH degree above 3, and is truncated.", "{prim}.{property}",
+       "Write one element per particle and SH degree 3 at most."),
+    _c("USD_VALIDATOR_ERROR", E, "USD", "An OpenUSD validator (pxr.UsdValidation, all "
+       "registered validators) reports an error; the message names it.",
+       "the prim or property it names, or \"\"", "Follow the named validator's rule."),
+    _c("USD_VALIDATOR_WARNING", W, "USD", "An OpenUSD validator reports a warning; the "
+       "message names it.", "the prim or property it names, or \"\"",
+       "Follow the named validator's rule."),
     # -- validator -------------------------------------------------------------------
     _c("INTERNAL_ERROR", E, "Validator", "A check failed unexpectedly: a bug in "
        "gsverse-validate, not necessarily in the asset. The other checks still ran.", "none",
        "Report it with the file."),
 ]
+
+#: Where the codes shared with glTF point in USD files ({prim}: the splat prim, {mesh}: its
+#: anchor Mesh), and the severity of the value checks for foreign USD prims, whose readers
+#: normalize orientations, make scales positive and clamp opacities (spec/usd.md §Foreign data).
+_USD_SHARED = {
+    "IO_ERROR": ("none", None),
+    "SIZE_LIMIT_EXCEEDED": ("none", None),
+    "SPLAT_COUNT_LIMIT": ("{prim}.positions", None),
+    "NON_FINITE_VALUE": ("{prim}.{property} or {mesh}.points", None),
+    "ROTATION_NOT_UNIT": ("{prim}.orientations or {prim}.gsverse:anchor:localOrientations", W),
+    "SCALE_NEGATIVE": ("{prim}.scales or {prim}.gsverse:anchor:localScales", W),
+    "OPACITY_OUT_OF_RANGE": ("{prim}.opacities", W),
+    "ANCHOR_MESH_NOT_TRIANGLES": ("{mesh}.faceVertexCounts", None),
+    "ANCHOR_MESH_INDICES_INVALID": ("{mesh}.faceVertexIndices", None),
+    "MESH_DEGENERATE_TRIANGLES": ("{mesh}", None),
+    "MESH_SLIVER_TRIANGLES": ("{mesh}", None),
+    "MESH_DUPLICATE_TRIANGLES": ("{mesh}", None),
+    "ANCHOR_FACE_OUT_OF_RANGE": ("{prim}.gsverse:anchor:faceIndices", None),
+    "ANCHOR_BOUND_TO_DEGENERATE": ("{prim}.gsverse:anchor:faceIndices", None),
+    "ANCHOR_NOT_SORTED": ("{prim}.gsverse:anchor:faceIndices", None),
+    "GAMES_BARYCENTRICS_OUTSIDE_SIMPLEX": ("{prim}.gsverse:anchor:barycentrics", None),
+    "LOCAL_BARYCENTRICS_FAR": ("{prim}.gsverse:anchor:barycentrics", None),
+    "GAMES_RHO_NEGATIVE": ("{prim}.gsverse:anchor:rho", None),
+    "REST_POSE_MEAN_MISMATCH": ("{prim}.positions", None),
+    "REST_POSE_COVARIANCE_MISMATCH": ("{prim}.orientations", None),
+    "INTERNAL_ERROR": ("none", None),
+}
+_ENTRIES = [replace(e, usd=_USD_SHARED[e.code][0], foreign_severity=_USD_SHARED[e.code][1])
+            if e.code in _USD_SHARED else replace(e, usd=e.pointer) if e.group == "USD" else e
+            for e in _ENTRIES]
 
 #: Every code, in catalogue order.
 CATALOGUE: dict[str, CodeInfo] = {entry.code: entry for entry in _ENTRIES}
@@ -357,11 +528,13 @@ class Finding:
     count: int | None = None
     examples: list[dict] | None = None
 
-    def to_json(self) -> dict:
+    def to_json(self, location_key: str = "pointer") -> dict:
+        """The Khronos-style message object; ``location_key`` names the location member
+        (``pointer`` for JSON pointers, ``usdPath`` for USD paths)."""
         out: dict[str, Any] = {"code": self.code, "severity": self.severity.label,
                                "message": self.message}
         if self.pointer is not None:
-            out["pointer"] = self.pointer
+            out[location_key] = self.pointer
         if self.offset is not None:
             out["offset"] = self.offset
         if self.count is not None:
@@ -383,6 +556,8 @@ class Issues:
     findings: list[Finding] = field(default_factory=list)
     truncated: bool = False
     unreadable: bool = False
+    #: Set while checking a foreign USD prim: codes with a ``foreign_severity`` default to it.
+    foreign: bool = False
 
     def add(self, code: str, message: str, *, pointer: str | None = None,
             offset: int | None = None, count: int | None = None,
@@ -393,7 +568,9 @@ class Issues:
             code, info = "INTERNAL_ERROR", CATALOGUE["INTERNAL_ERROR"]
         if info.unreadable:
             self.unreadable = True
-        severity = self.overrides[code] if code in self.overrides else info.severity
+        default = info.foreign_severity if self.foreign and info.foreign_severity is not None \
+            else info.severity
+        severity = self.overrides[code] if code in self.overrides else default
         if severity is None:
             return
         if self.max_issues is not None and len(self.findings) >= self.max_issues:

@@ -1,5 +1,6 @@
-"""Validate one ``.glb``/``.gltf`` file: container, ``KHR_gaussian_splatting``, anchor extension,
-anchor mesh and rest-pose consistency. Returns a :class:`Report`; never raises for bad input.
+"""Validate one file: ``.glb``/``.gltf`` (container, ``KHR_gaussian_splatting``, anchor extension,
+anchor mesh and rest-pose consistency) or ``.usda``/``.usdc``/``.usd``/``.usdz`` (spec/usd.md,
+:mod:`.usd`). Returns a :class:`Report`; never raises for bad input.
 """
 from __future__ import annotations
 
@@ -15,9 +16,14 @@ from gsverse_format import __version__
 from gsverse_format.io import gltf as G
 
 from .anchor import check_anchor
-from .container import GLB_MIME, GLTF_MIME, Context, Options, load_container
+from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
+from .context import CheckContext
 from .issues import Issues, Severity
 from .khr import check_splat_primitive
+from .usd import usd_mime_type, validate_usd
+
+#: File name suffixes validated as USD.
+USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 
 __all__ = ["Report", "validate_file", "VALIDATOR_NAME"]
 
@@ -26,13 +32,18 @@ VALIDATOR_NAME = "gsverse-validate"
 
 @dataclass
 class Report:
-    """The findings for one file and a short description of what it holds (``info``)."""
+    """The findings for one file and a short description of what it holds (``info``).
+
+    Findings locate problems by JSON pointer (glTF; written as ``pointer`` in JSON) or by USD
+    path (USD files, ``usd`` true; written as ``usdPath``).
+    """
 
     path: str
     issues: Issues
     mime_type: str | None = None
     info: dict[str, Any] = field(default_factory=dict)
     seconds: float = 0.0
+    usd: bool = False
 
     @property
     def findings(self):
@@ -61,7 +72,8 @@ class Report:
                 "numWarnings": self.count(Severity.WARNING),
                 "numInfos": self.count(Severity.INFO),
                 "numHints": self.count(Severity.HINT),
-                "messages": [f.to_json() for f in self.findings],
+                "messages": [f.to_json("usdPath" if self.usd else "pointer")
+                             for f in self.findings],
                 "truncated": self.issues.truncated,
             },
             "info": self.info,
@@ -146,6 +158,16 @@ def validate_file(path: str | os.PathLike, options: Options | None = None, *,
     options = options or Options()
     issues = Issues(dict(overrides or {}), max_issues)
     report = Report(spath, issues)
+    if os.path.splitext(spath)[1].lower() in USD_SUFFIXES:
+        report.usd = True
+        try:
+            if not file_problem(spath, issues, USD_SUFFIXES):
+                report.mime_type = usd_mime_type(spath)
+                validate_usd(CheckContext(spath, options, issues), report.info)
+        except Exception as err:  # never crash on input; report where it happened
+            _internal(issues, err)
+        report.seconds = time.perf_counter() - start
+        return report
     try:
         ctx = load_container(spath, options, issues)
         if ctx is not None:

@@ -19,7 +19,8 @@ writer then authors the same file by hand (``spec/usd.md`` §Writing without the
 schema) and a :class:`UsdSchemaWarning` says so. Reading never needs the schemas.
 
 Public API: :func:`write_usd`, :func:`read_usd`, :func:`check_usd` (every problem of a file,
-with USD paths as locations, for validators), :func:`load_poses` / :class:`BakedPoses` (the
+with USD paths as locations, for validators), :func:`inspect_usd` (the problems and the data
+as authored), :func:`load_poses` / :class:`BakedPoses` (the
 ``--bake-poses`` file) and :func:`register_schema`. ``read_usd(..., isolate=True)`` and
 :func:`check_usd` parse the file in a child process: usd-core's binary reader can crash on
 some corrupted files, and a crash there becomes a :class:`FormatError` here.
@@ -46,8 +47,9 @@ from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatClo
                      SplatPrimitive, TriangleMesh, sh_coefficient_count)
 
 __all__ = ["USD_SUFFIXES", "MISSING_USD_CORE", "SCHEMA_DIR", "ANCHOR_API", "COLOR_SPACE_API",
-           "UsdSchemaWarning", "UsdReadWarning", "UsdProblem", "BakedPoses", "register_schema",
-           "write_usd", "read_usd", "check_usd", "load_poses"]
+           "UsdSchemaWarning", "UsdReadWarning", "UsdProblem", "UsdInspection", "UsdPrimInfo",
+           "BakedPoses",
+           "register_schema", "write_usd", "read_usd", "check_usd", "inspect_usd", "load_poses"]
 
 #: File suffixes handled here (``.usd`` is written as binary ``usdc``).
 USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
@@ -572,7 +574,9 @@ class _Reader:
 
     ``errors`` stop the prim concerned (an anchored prim is never read without its anchors);
     ``warnings`` note data replaced by the schema's defaults. With ``conformance`` it also
-    checks the writer rules of spec/usd.md that a reader does not need.
+    checks the writer rules of spec/usd.md that a reader does not need, and keeps
+    orientations, scales and opacities as authored (not normalized, made positive or
+    clamped), so that validators can check the values themselves.
     """
 
     def __init__(self, px: types.SimpleNamespace, stage, conformance: bool = False) -> None:
@@ -582,6 +586,9 @@ class _Reader:
         self.problems: list[UsdProblem] = []
         self.meshes: dict[str, TriangleMesh | _Invalid] = {}
         self.mesh_prims: list = []
+        #: Where every primitive read came from, in order.
+        self.locations: list[UsdPrimInfo] = []
+        self._mesh_key: str | None = None
 
     # -- recording
     def error(self, location, message: str, code: str, *, stop: bool = True) -> None:
@@ -670,12 +677,18 @@ class _Reader:
         primitives: list[SplatPrimitive] = []
         for prim in self.stage.Traverse():
             if prim.IsA(splat_type):
+                self._mesh_key = None
                 try:
                     result = self.splat_prim(prim)
                 except _Invalid:
                     continue
                 if result is not None:
                     primitives.append(result)
+                    apis = prim.GetPrimTypeInfo().GetAppliedAPISchemas()
+                    self.locations.append(UsdPrimInfo(
+                        str(prim.GetPath()),
+                        self._mesh_key if result.anchoring is not None else None,
+                        ANCHOR_API in apis or COLOR_SPACE_API in apis))
             elif prim.IsA(px.UsdVol.ParticleField):
                 self.warn(prim.GetPath(), f"{prim.GetTypeName() or 'ParticleField'} prim is not a "
                           f"{_SPLAT_TYPE} (no KHR_gaussian_splatting equivalent): skipped",
@@ -818,9 +831,11 @@ class _Reader:
         opac, _ = self.rest_array(prim, "opacities", n, anchored)
         sh = self.spherical_harmonics(prim, n, anchored)
 
-        rot = np.tile(np.float32([0, 0, 0, 1]), (n, 1)) if rot is None else _unit_quaternions(rot)
-        scales = np.ones((n, 3), np.float32) if scales is None else np.abs(scales)
-        opac = np.ones(n, np.float32) if opac is None else np.clip(opac, 0.0, 1.0)
+        rot = np.tile(np.float32([0, 0, 0, 1]), (n, 1)) if rot is None else rot
+        scales = np.ones((n, 3), np.float32) if scales is None else scales
+        opac = np.ones(n, np.float32) if opac is None else opac
+        if not self.conformance:  # validators check the values as authored
+            rot, scales, opac = _unit_quaternions(rot), np.abs(scales), np.clip(opac, 0.0, 1.0)
 
         cs_attr = prim.GetAttribute(COLOR_SPACE_ATTR)
         color_space = self.token(cs_attr)
@@ -923,7 +938,9 @@ class _Reader:
                 self.error(attr("gsverse:anchor:deformation").GetPath(),
                            f"is {deformation!r}, must be 'affine' or 'rigid'", "BAD_DEFORMATION")
             offsets = per_splat("gsverse:anchor:normalOffsets")
-            rotations = _unit_quaternions(per_splat("gsverse:anchor:localOrientations"))
+            rotations = per_splat("gsverse:anchor:localOrientations")
+            if not self.conformance:  # validators check the values as authored
+                rotations = _unit_quaternions(rotations)
             local_scales = per_splat("gsverse:anchor:localScales", required=False)
             if local_scales is None:
                 local_scales = cloud.scales
@@ -937,7 +954,7 @@ class _Reader:
         if len(targets) != 1:
             self.error(where, f"has {len(targets)} targets, must have exactly one (the anchor "
                               f"Mesh)", "BAD_MESH_TARGET")
-        key = str(targets[0])
+        key = self._mesh_key = str(targets[0])
         if key not in self.meshes:
             try:
                 self.meshes[key] = self.read_mesh(targets[0], where)
@@ -1132,6 +1149,63 @@ def _check_path(path: str) -> None:
         raise FormatError(f"not a USD file name (use one of {', '.join(USD_SUFFIXES)})", path)
 
 
+#: At most this many layers are followed when checking a file's composition arcs.
+_MAX_LAYERS = 4096
+
+
+class _OutsideFolder(FormatError):
+    """A composition arc of the file leads outside the file's folder."""
+
+
+def _inside(resolved: str, folder: str) -> bool:
+    outer = resolved.split("[", 1)[0]  # "pkg.usdz[inner.usdc]": the package is what counts
+    real = os.path.realpath(outer)
+    return real == folder or real.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _check_composition(px: types.SimpleNamespace, path: str) -> None:
+    """Refuse files whose sublayers, references or payloads leave the file's folder.
+
+    Like the glTF reader's URI rules: an asset path with a scheme (``http:``, ...), an
+    absolute path, or a relative path that resolves (symbolic links followed) outside the
+    folder of ``path`` is refused before USD composes anything, so that opening a file never
+    reads files elsewhere. Layers inside a ``.usdz`` package are inside by definition.
+    Dependencies are followed recursively (``_MAX_LAYERS`` at most); a dependency that does
+    not exist or does not open is left to USD (which reports it as a warning).
+    """
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
+    root = px.Sdf.Layer.FindOrOpen(path)
+    if root is None:
+        return  # not a layer at all: Usd.Stage.Open says why
+    todo, seen = [root], {root.identifier}
+    while todo:
+        layer = todo.pop()
+        for dep in layer.GetCompositionAssetDependencies():
+            scheme = re.match(r"^([A-Za-z][A-Za-z0-9+.-]*):", dep)
+            if scheme and len(scheme.group(1)) > 1:
+                raise _OutsideFolder(f"composition arc to {dep!r} in {layer.GetDisplayName()}: "
+                                     f"URI schemes are not followed", path)
+            if os.path.isabs(dep) or dep.startswith(("\\", "//")) or scheme:
+                raise _OutsideFolder(f"composition arc to the absolute path {dep!r} in "
+                                     f"{layer.GetDisplayName()}: only paths inside the "
+                                     f"asset's folder are followed", path)
+            resolved = layer.ComputeAbsolutePath(dep)
+            if not _inside(resolved, folder):
+                raise _OutsideFolder(f"composition arc to {dep!r} in {layer.GetDisplayName()} "
+                                     f"leaves the asset's folder", path)
+            if resolved in seen:
+                continue
+            seen.add(resolved)
+            if len(seen) > _MAX_LAYERS:
+                raise FormatError(f"more than {_MAX_LAYERS} layers in the composition", path)
+            try:
+                child = px.Sdf.Layer.FindOrOpen(resolved)
+            except Exception:
+                child = None
+            if child is not None:
+                todo.append(child)
+
+
 def _open_stage(px: types.SimpleNamespace, path: str):
     """Open ``path`` as a USD stage; every failure is a one-line FormatError."""
     _check_path(path)
@@ -1139,7 +1213,10 @@ def _open_stage(px: types.SimpleNamespace, path: str):
         existing = px.Sdf.Layer.Find(path)
         if existing is not None and not existing.dirty:
             existing.Reload(True)  # the file may have been replaced since it was opened
+        _check_composition(px, path)
         stage = px.Usd.Stage.Open(path, px.Usd.Stage.LoadAll)
+    except FormatError:
+        raise
     except Exception as err:
         raise FormatError(f"not a readable USD file: {_pxr_message(err)}", path) from None
     if stage is None:
@@ -1210,25 +1287,74 @@ def check_usd(path: str | os.PathLike, *, usd_validation: bool = True, isolate: 
     writer rules (stage metadata and layout, API schema authoring, anchor-mesh and baked
     animation rules) and, with ``usd_validation``, OpenUSD's own validators
     (``pxr.UsdValidation``, codes ``usd:<validator name>``). A file whose list has no
-    ``"error"`` entry conforms. Raises :class:`FormatError` only when the file cannot be opened
-    as a USD stage at all, :class:`UsageError` without usd-core.
+    ``"error"`` entry conforms. A file whose composition arcs leave its folder is not opened
+    (one ``LAYER_OUTSIDE_FOLDER`` error). Raises :class:`FormatError` only when the file
+    cannot be opened as a USD stage at all, :class:`UsageError` without usd-core.
 
     By default the file is checked in a child process (see :func:`read_usd`), which also
     guarantees that the GsVerse schemas are registered there, so that OpenUSD's
     ``AttributeTypeMismatch`` validator checks the ``gsverse:`` attributes.
     """
+    return inspect_usd(path, usd_validation=usd_validation, isolate=isolate, timeout=timeout,
+                       data=False).problems
+
+
+@dataclass(frozen=True)
+class UsdPrimInfo:
+    """Where a primitive of :class:`UsdInspection` comes from: its splat prim, its anchor
+    ``Mesh`` (None when static), and whether the prim applies a GsVerse API schema (else it
+    is foreign data, to which the writer rules of spec/usd.md do not apply)."""
+
+    path: str
+    mesh_path: str | None
+    gsverse: bool
+
+
+@dataclass
+class UsdInspection:
+    """What :func:`inspect_usd` found in a USD file.
+
+    ``problems`` as :func:`check_usd` returns them. ``asset`` holds the splat primitives that
+    could be read (anchored prims with errors are left out), with orientations, scales,
+    opacities and local orientations **as authored** (not normalized, made positive or
+    clamped), converted to +Y up and metres like :func:`read_usd`. ``prims`` says where
+    each primitive comes from.
+    """
+
+    problems: list[UsdProblem]
+    asset: SplatAsset
+    prims: list[UsdPrimInfo]
+
+
+def inspect_usd(path: str | os.PathLike, *, usd_validation: bool = True, isolate: bool = True,
+                timeout: float | None = None, data: bool = True) -> UsdInspection:
+    """:func:`check_usd` plus the data it read (``data=False``: problems only, empty asset).
+
+    Validators use the data to run the checks that do not depend on the file format (unit
+    quaternions, triangle quality, rest-pose consistency). Raises like :func:`check_usd`.
+    """
     spath = os.fspath(path)
     if isolate:
-        result = _run_isolated("check-validate" if usd_validation else "check", spath, timeout)
-        return [UsdProblem(**p) for p in result["problems"]]
+        mode = ("inspect" if data else "check") + ("-validate" if usd_validation else "")
+        result = _run_isolated(mode, spath, timeout)
+        problems = [UsdProblem(**p) for p in result["problems"]]
+        if not data:
+            return UsdInspection(problems, SplatAsset([]), [])
+        return UsdInspection(problems, result["asset"],
+                             [UsdPrimInfo(**p) for p in result["prims"]])
     try:
         px = _pxr()
-        stage = _open_stage(px, spath)
+        try:
+            stage = _open_stage(px, spath)
+        except _OutsideFolder as err:
+            return UsdInspection([UsdProblem("error", "", err.cause, "LAYER_OUTSIDE_FOLDER")],
+                                 SplatAsset([]), [])
         reader = _Reader(px, stage, conformance=True)
         try:
-            reader.read()
+            asset = reader.read()
         except _Invalid:
-            pass
+            asset = SplatAsset([])
+            reader.locations = []
         splats = [p for p in stage.Traverse() if p.IsA(px.UsdVol.ParticleField3DGaussianSplat)]
         reader.layout_rules([p.GetPath() for p in splats])
         reader.animation_rules(splats)
@@ -1237,10 +1363,14 @@ def check_usd(path: str | os.PathLike, *, usd_validation: bool = True, isolate: 
             problems += _usd_validation(stage)
     except GsverseError as err:
         raise err.with_path(spath) from None
+    except MemoryError:
+        raise FormatError("not enough memory to read the asset", spath) from None
     except Exception as err:
         raise FormatError(f"malformed USD ({type(err).__name__}: {_pxr_message(err)})",
                           spath) from None
-    return problems
+    if not data:
+        return UsdInspection(problems, SplatAsset([]), [])
+    return UsdInspection(problems, asset, list(reader.locations))
 
 
 # ----------------------------------------------------------------------------------------
@@ -1265,7 +1395,8 @@ def _child_limits(memory: int):  # pragma: no cover - runs in the child before e
 
 
 def _run_isolated(mode: str, spath: str, timeout: float | None) -> dict:
-    """Run ``mode`` ("read", "check", "check-validate") on ``spath`` in a child interpreter."""
+    """Run ``mode`` on ``spath`` in a child interpreter: "read", or "check"/"inspect" with an
+    optional "-validate" suffix (also run ``pxr.UsdValidation``)."""
     import signal
     import subprocess
     import sys
@@ -1311,7 +1442,7 @@ def _run_isolated(mode: str, spath: str, timeout: float | None) -> dict:
         if not result["ok"]:
             kind = UsageError if result["error"] == "UsageError" else FormatError
             raise kind(result["cause"], spath)
-        if mode == "read":
+        if "asset" in result:
             result["asset"] = _load_asset(out + ".npz", result["asset"])
         return result
 
@@ -1378,8 +1509,12 @@ def _child_main() -> None:  # pragma: no cover - runs in a child interpreter
             result.update(asset=_save_asset(asset, out + ".npz"),
                           problems=[asdict(p) for p in problems])
         else:
-            problems = check_usd(path, usd_validation=mode == "check-validate", isolate=False)
-            result["problems"] = [asdict(p) for p in problems]
+            found = inspect_usd(path, usd_validation=mode.endswith("-validate"), isolate=False,
+                                data=mode.startswith("inspect"))
+            result["problems"] = [asdict(p) for p in found.problems]
+            if mode.startswith("inspect"):
+                result.update(asset=_save_asset(found.asset, out + ".npz"),
+                              prims=[asdict(p) for p in found.prims])
     except GsverseError as err:
         result = {"ok": False, "error": type(err).__name__, "cause": err.cause}
     with open(out + ".json", "w", encoding="utf-8") as handle:
