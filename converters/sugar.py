@@ -44,6 +44,7 @@ from ..io.mesh import read_mesh
 from ..io.ply import read_splat_ply
 from ..model import Anchoring, LocalAnchors, SplatCloud, TriangleMesh
 from ..remap import remap
+from ..tolerances import mesh_extent, rest_mean_tolerance
 from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
 from .base import SourceOptions, SourceResult
 
@@ -61,11 +62,6 @@ SLOT_BARYCENTRICS = {
 }
 SLOTS = tuple(sorted(SLOT_BARYCENTRICS))
 
-#: Means must match their slot positions within this fraction of the mesh's bounding-box
-#: diagonal (the spec's rest-pose consistency bound) plus :data:`ROUNDING_ULPS` float32 steps of
-#: the largest coordinate (what float32 arithmetic far from the origin cannot do better than).
-MEAN_TOLERANCE = 1e-5
-ROUNDING_ULPS = 8
 #: Absolute rounding of the refined OBJ (SuGaR writes it with 6 decimal places).
 OBJ_ROUNDING = 5e-7
 
@@ -144,18 +140,13 @@ def rest_errors(splats: SplatCloud, mesh: TriangleMesh, anchors: LocalAnchors) -
 
 
 def mean_tolerance(mesh: TriangleMesh) -> float:
-    """Largest acceptable distance between a source's mean and its anchored position."""
-    if len(mesh.vertices) == 0:
-        return 0.0
-    largest = float(np.abs(mesh.vertices.astype(np.float64)).max())
-    return MEAN_TOLERANCE * _diagonal(mesh) + ROUNDING_ULPS * float(np.finfo(np.float32).eps) * largest
+    """Largest acceptable distance between a source's mean and its anchored position: the
+    spec's rest-pose bound (:func:`gsverse_format.tolerances.rest_mean_tolerance`)."""
+    return rest_mean_tolerance(*mesh_extent(mesh))
 
 
 def _diagonal(mesh: TriangleMesh) -> float:
-    if len(mesh.vertices) == 0:
-        return 0.0
-    v = mesh.vertices.astype(np.float64)
-    return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    return mesh_extent(mesh)[0]
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,7 +16,8 @@ from gsverse_format.io.gltf import asset_to_gltf, gltf_to_bytes, read_gltf, writ
 from gsverse_format.model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
 
-from helpers import bumpy_sphere, random_splats, surface_splats, extension_schema_validator
+from helpers import (bumpy_sphere, extension_schema_validator, max_rel_cov_error, random_splats,
+                     surface_splats)
 
 KHR = "KHR_gaussian_splatting"
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -924,10 +925,37 @@ def test_output_passes_validator_and_playcanvas(tmp_path, suffix):
     assert codes <= {"UNSUPPORTED_EXTENSION", "UNUSED_OBJECT"}, codes
     read = khr_tools.read_with_playcanvas(path)
     assert [r["mesh_name"] for r in read] == ["body", "bg"]
-    for got, want in zip(read, asset.primitives):
+    stored = read_gltf(path)  # quantized anchors store their own rest pose (not asset's)
+    np.testing.assert_array_equal(stored.primitives[1].splats.means, asset.primitives[1].splats.means)
+    for got, want in zip(read, stored.primitives):
         s = want.splats
         assert np.array_equal(np.asarray(got["position"], np.float32), s.means)
         assert np.array_equal(np.asarray(got["rotation"], np.float32), s.rotations)
         assert np.array_equal(np.asarray(got["scale"], np.float32), s.scales)
         assert np.array_equal(np.asarray(got["opacity"], np.float32), s.opacities)
         assert np.array_equal(np.asarray(got["sh"], np.float32), s.sh)
+
+
+@pytest.mark.parametrize("quantize", [{"barycentrics": "unsigned_byte", "localRotation": "byte"},
+                                      {"barycentrics": "unsigned_short", "localRotation": "short"}])
+@pytest.mark.parametrize("profile", ["local", "games"])
+def test_quantized_anchors_store_their_own_rest_pose(tmp_path, quantize, profile):
+    """Quantizing moves the splats by about half a step, and the stored rest pose is the remap
+    of the anchors as stored (the asset stays self-consistent)."""
+    import validation_assets as va
+    from gsverse_format.remap import remap
+
+    asset = va.local_asset(80) if profile == "local" else va.games_asset(80)
+    path = tmp_path / "q.glb"
+    write_gltf(asset, path, quantize=quantize if profile == "local" else
+               {"barycentrics": quantize["barycentrics"]})
+    got = read_gltf(path).primitives[0]
+    rest = remap(got.anchoring)
+    assert np.abs(rest.means - got.splats.means).max() < 1e-6
+    assert max_rel_cov_error(got.splats.covariances(), rest.covariances) < 1e-5
+    want = asset.primitives[0]
+    step = 1 / 255 if quantize["barycentrics"] == "unsigned_byte" else 1 / 65535
+    edge = np.linalg.norm(np.diff(want.anchoring.mesh.triangles(), axis=1), axis=2).max()
+    moved = np.linalg.norm(got.splats.means - want.splats.means, axis=1).max()
+    assert 0 < moved <= step * edge * 1.01
+    np.testing.assert_array_equal(got.splats.opacities, want.splats.opacities)

@@ -15,6 +15,9 @@ from gsverse_format.validators.issues import CATALOGUE, Severity, parse_severity
 from gsverse_format.validators.validate import validate_file
 
 import validation_assets as va
+from gsverse_format.binding import bind_local
+from gsverse_format.model import Anchoring, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
+from gsverse_format.remap import remap
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: Codes glTF files can trigger (the USD group is tested in test_validate_usd.py).
@@ -133,10 +136,33 @@ def test_rest_pose_tolerance_is_the_spec_tolerance(folder):
         assert not report.findings
         v = d.values(d.doc["meshes"][2]["primitives"][0]["attributes"]["POSITION"])
         diagonal = float(np.linalg.norm(v.max(0).astype(float) - v.min(0)))
+        largest = float(np.abs(v).max())
         pos = d.values(d.attr("POSITION"))
-        pos[4, 2] += np.float32(factor * 1e-5 * diagonal)
+        pos[4, 2] += np.float32(factor * (1e-5 * diagonal + 8 * 2.0 ** -23 * largest))
         report = validate_file(d.write(folder, f"moved{factor}.glb"))
         assert ("REST_POSE_MEAN_MISMATCH" in report.codes()) == flagged
+
+
+def test_rest_pose_tolerance_allows_float32_rounding_far_from_the_origin(folder):
+    """A 1 mm mesh 100 m from the origin: float32 positions are 8e-6 m apart, more than
+    1e-5 x D = 1.7e-8 m; the spec's 8 ulp term accepts the rounding, nothing more."""
+    asset = va.local_asset()
+    p = asset.primitives[0]
+    mesh, cloud = p.anchoring.mesh, p.splats
+    shift, size = np.array([100.0, -60.0, 30.0]), 1e-3
+    far_mesh = TriangleMesh((mesh.vertices * size + shift).astype(np.float32), mesh.faces)
+    anchors = bind_local(SplatCloud((cloud.means * size + shift).astype(np.float32),
+                                    cloud.rotations, cloud.scales * size, cloud.opacities,
+                                    cloud.sh), far_mesh).anchors
+    rest = remap(Anchoring(far_mesh, anchors))
+    far = SplatCloud(rest.means.astype(np.float32), rest.rotations.astype(np.float32),
+                     rest.scales.astype(np.float32), cloud.opacities, cloud.sh)
+    path = va.Doc.of(SplatAsset([SplatPrimitive(far, Anchoring(far_mesh, anchors), "far")])
+                     ).write(folder, "far.glb")
+    assert validate_file(path).findings == []
+    d = va.Doc.of(SplatAsset([SplatPrimitive(far, Anchoring(far_mesh, anchors), "far")]))
+    d.values(d.attr("POSITION"))[2, 0] += np.float32(2e-4)  # ~26 ulps: flagged
+    assert "REST_POSE_MEAN_MISMATCH" in validate_file(d.write(folder, "farmoved.glb")).codes()
 
 
 def test_barycentric_tolerances(folder):

@@ -201,6 +201,11 @@ def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
             ("quantized.glb", local_asset(), {"quantize": {"barycentrics": "unsigned_short",
                                                            "localRotation": "short"}}),
             ("quantized16.gltf", games_asset(), {"quantize": {"barycentrics": "unsigned_short"}}),
+            ("quantized8.glb", local_asset(), {"quantize": {"barycentrics": "unsigned_byte",
+                                                            "localRotation": "byte"}}),
+            ("quantized8_rigid.gltf", local_asset(deformation="rigid", lift=0.05),
+             {"quantize": {"barycentrics": "unsigned_byte", "localRotation": "byte"}}),
+            ("quantized8_games.glb", games_asset(), {"quantize": {"barycentrics": "unsigned_byte"}}),
             ("plain.glb", SplatAsset([SplatPrimitive(example_splats(example_mesh(1), 20), None,
                                                      "plain")]), {})):
         out.append(Doc.of(asset, **kw).write(folder, name))

@@ -93,8 +93,8 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
             return result
         faces = np.arange(len(vertices), dtype=np.int64).reshape(-1, 3)
     checked = check_triangles(ctx, TriangleMesh(vertices, faces), pointer)
-    result.mesh, result.degenerate, result.diagonal = (checked.mesh, checked.degenerate,
-                                                       checked.diagonal)
+    result.mesh, result.degenerate = checked.mesh, checked.degenerate
+    result.diagonal, result.largest = checked.diagonal, checked.largest
     for n, node in enumerate(ctx.array("nodes")):
         if isinstance(node, dict) and node.get("mesh") == m:
             ctx.issues.add("ANCHOR_MESH_INSTANTIATED", f"node {n} instantiates the anchor mesh "

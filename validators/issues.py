@@ -76,8 +76,9 @@ TOLERANCES: dict[str, tuple[float, str]] = {
                        "height over that edge"),
     "sliver": (1e-3, "a regular triangle is a sliver when its doubled area a ≤ 1e-3 · ℓ² "
                      "(smallest height ≤ 0.1 % of the longest edge)"),
-    "rest_mean": (1e-5, "spec §Rest-pose consistency: |Δμ| ≤ 1e-5 · D, D the diagonal of the "
-                        "anchor mesh's bounding box"),
+    "rest_mean": (1e-5, "spec §Rest-pose consistency: |Δμ| ≤ 1e-5 · D + 8 ε₃₂ L, D the "
+                        "diagonal of the anchor mesh's bounding box, L its largest absolute "
+                        "coordinate, ε₃₂ = 2⁻²³ (float32 rounding far from the origin)"),
     "rest_covariance": (1e-4, "spec §Rest-pose consistency: ‖ΔΣ‖_F ≤ 1e-4 · ‖Σ‖_F, plus an "
                               "absolute floor of (1e-7 · D)² for covariances below float32 "
                               "resolution"),
@@ -331,7 +332,7 @@ _ENTRIES = [
        _EXT + "/faceIndex", "Sort the splats by face (gsverse-convert does by default)."),
     # -- rest pose ---------------------------------------------------------------------
     _c("REST_POSE_MEAN_MISMATCH", E, "Rest pose", "The remap at the rest anchor mesh does not "
-       "reproduce a stored POSITION within |Δμ| ≤ 1e-5 · D; count and the worst splats. "
+       "reproduce a stored POSITION within |Δμ| ≤ 1e-5 · D + 8 ε₃₂ L; count and the worst splats. "
        "Checked only when the splat and anchor data are otherwise valid.",
        _PRIM + "/attributes/POSITION", "Re-bind the splats, or store the remapped rest pose."),
     _c("REST_POSE_COVARIANCE_MISMATCH", E, "Rest pose", "The remap at the rest anchor mesh does "

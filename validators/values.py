@@ -17,6 +17,8 @@ import numpy as np
 from gsverse_format.frames import EPS_DEGENERATE, degenerate_mask
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
 from gsverse_format.remap import covariance_entries, iter_moments
+from gsverse_format.tolerances import (REST_COVARIANCE_FLOOR, REST_COVARIANCE_RELATIVE,
+                                       mesh_extent, rest_mean_tolerance)
 
 from .context import CheckContext
 from .issues import TOLERANCES
@@ -45,12 +47,14 @@ class RestPose:
 
 @dataclass
 class AnchorMesh:
-    """A checked anchor mesh: the mesh (``None`` when unusable), its degenerate triangles and
-    the diagonal of its bounding box (the length scale D of the rest-pose tolerance)."""
+    """A checked anchor mesh: the mesh (``None`` when unusable), its degenerate triangles, the
+    diagonal D of its bounding box and its largest absolute coordinate L (the length scales
+    of the rest-pose tolerance)."""
 
     mesh: TriangleMesh | None
     degenerate: np.ndarray | None = None
     diagonal: float = 0.0
+    largest: float = 0.0
 
 
 @dataclass
@@ -160,9 +164,7 @@ def check_triangles(ctx: CheckContext, mesh: TriangleMesh, location: str) -> Anc
                        pointer=location, count=n_thin,
                        examples=ctx.examples(faces, face=np.arange(f), areaRatio=ratio))
     _check_duplicates(ctx, mesh, location)
-    vertices = mesh.vertices.astype(np.float64)
-    span = vertices.max(axis=0) - vertices.min(axis=0) if len(vertices) else np.zeros(3)
-    return AnchorMesh(mesh, degenerate, float(np.linalg.norm(span)))
+    return AnchorMesh(mesh, degenerate, *mesh_extent(mesh))
 
 
 def _check_duplicates(ctx: CheckContext, mesh: TriangleMesh, location: str) -> None:
@@ -255,7 +257,7 @@ def check_anchor_values(ctx: CheckContext, values: AnchorValues, mesh: AnchorMes
             if ok:
                 anchors = GamesAnchors(face, bary, rho[:, 0])
     if anchors is not None and rest is not None and consistent:
-        check_rest_pose(ctx, rest, Anchoring(mesh.mesh, anchors), mesh.diagonal)
+        check_rest_pose(ctx, rest, Anchoring(mesh.mesh, anchors), mesh.diagonal, mesh.largest)
 
 
 def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray,
@@ -296,12 +298,13 @@ def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray
 # ---------------------------------------------------------------------------- rest pose
 
 def check_rest_pose(ctx: CheckContext, rest: RestPose, anchoring: Anchoring,
-                    diagonal: float) -> None:
-    """spec §Rest-pose consistency: the remap at the rest mesh against the stored rest pose."""
+                    diagonal: float, largest: float = 0.0) -> None:
+    """spec §Rest-pose consistency: the remap at the rest mesh against the stored rest pose
+    (bounds: :mod:`gsverse_format.tolerances`)."""
     n = len(anchoring.anchors)
-    mean_tol = TOLERANCES["rest_mean"][0] * diagonal
-    floor = (1e-7 * diagonal) ** 2
-    rel_tol = TOLERANCES["rest_covariance"][0]
+    mean_tol = rest_mean_tolerance(diagonal, largest)
+    floor = (REST_COVARIANCE_FLOOR * diagonal) ** 2
+    rel_tol = REST_COVARIANCE_RELATIVE
     mean_err = np.empty(n)
     cov_ratio = np.empty(n)
     cov_rel = np.empty(n)
@@ -314,7 +317,8 @@ def check_rest_pose(ctx: CheckContext, rest: RestPose, anchoring: Anchoring,
         worst = bad[np.argsort(-mean_err[bad], kind="stable")[:k]]
         ctx.issues.add("REST_POSE_MEAN_MISMATCH", f"{bad.size} of {n} stored means differ from "
                        f"the remap at the rest mesh by more than {mean_tol:.3g} (1e-5 x the "
-                       f"anchor mesh diagonal {diagonal:.4g}); worst {mean_err[bad].max():.3g}",
+                       f"anchor mesh diagonal {diagonal:.4g} + 8 float32 ulps of its largest "
+                       f"coordinate {largest:.4g}); worst {mean_err[bad].max():.3g}",
                        pointer=rest.mean_location, count=int(bad.size),
                        examples=ctx.examples(worst, splat=index, error=mean_err))
     bad = np.flatnonzero(cov_ratio > 1.0)

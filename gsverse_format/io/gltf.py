@@ -236,36 +236,79 @@ def _check_primitive(i: int, prim: SplatPrimitive) -> None:
         raise UsageError(f"{label} has anchors of unknown type {type(anchors).__name__}")
 
 
-def _write_anchors(b: _Builder, prim: SplatPrimitive, mesh_index: int, scale_accessor: int,
-                   quant: dict[str, tuple[int, float] | None]) -> dict[str, Any]:
-    anchors = prim.anchoring.anchors
+@dataclass
+class _EncodedAnchors:
+    """Anchor data as the writer stores them: normalized-integer codes for the quantized
+    properties (None: stored as FLOAT), and ``anchors`` as a reader dequantizes them."""
+
+    anchors: LocalAnchors | GamesAnchors
+    barycentrics: tuple[np.ndarray, int] | None = None
+    local_rotation: tuple[np.ndarray, int] | None = None
+
+
+def _encode_anchors(anchors: LocalAnchors | GamesAnchors,
+                    quant: dict[str, tuple[int, float] | None]) -> _EncodedAnchors:
+    """Quantize the anchors as ``quant`` asks; dequantize the codes as glTF 2.0 §3.11 says
+    (``c / 255``, ``max(c / 127, -1)``, ...; quaternions renormalized, as readers do)."""
+    out = _EncodedAnchors(anchors)
+    bary = anchors.barycentrics
+    q = quant.get("barycentrics")
+    if q is not None and bool(np.all((bary >= 0.0) & (bary <= 1.0))):
+        ctype, top = q
+        codes = np.round(bary.astype(np.float64) * top)
+        out.barycentrics = (codes, ctype)
+        bary = (codes.astype(np.float32) / np.float32(top)).astype(np.float32)
+    if isinstance(anchors, LocalAnchors):
+        rot = _unit_quaternions(anchors.local_rotation)
+        q = quant.get("localRotation")
+        if q is not None:
+            ctype, top = q
+            codes = np.clip(np.round(rot.astype(np.float64) * top), -top, top)
+            out.local_rotation = (codes, ctype)
+            rot = _unit_quaternions(np.maximum(codes / top, -1.0).astype(np.float32))
+        out.anchors = LocalAnchors(anchors.face_index, bary, anchors.normal_offset, rot,
+                                   anchors.local_scale, anchors.deformation)
+    else:
+        out.anchors = GamesAnchors(anchors.face_index, bary, anchors.rho)
+    return out
+
+
+def _rest_pose_of(prim: SplatPrimitive, encoded: _EncodedAnchors) -> SplatCloud:
+    """The splats with the rest pose remapped from the anchors as stored (spec §Rest-pose
+    consistency), for quantized anchors; otherwise the splats unchanged."""
+    if encoded.barycentrics is None and encoded.local_rotation is None:
+        return prim.splats
+    from ..remap import remap
+
+    rest = remap(Anchoring(prim.anchoring.mesh, encoded.anchors))
+    c = prim.splats
+    return SplatCloud(rest.means.astype(np.float32), rest.rotations.astype(np.float32),
+                      rest.scales.astype(np.float32), c.opacities, c.sh, c.color_space,
+                      dict(c.extra))
+
+
+def _write_anchors(b: _Builder, prim: SplatPrimitive, encoded: _EncodedAnchors,
+                   splats: SplatCloud, mesh_index: int, scale_accessor: int) -> dict[str, Any]:
+    anchors = encoded.anchors
     faces = prim.anchoring.mesh.face_count
     ftype = UNSIGNED_BYTE if faces <= 256 else UNSIGNED_SHORT if faces <= 65536 else UNSIGNED_INT
     obj: dict[str, Any] = {"mesh": mesh_index, "primitive": 0, "profile": anchors.profile}
     if isinstance(anchors, LocalAnchors):
         obj["deformation"] = anchors.deformation
     obj["faceIndex"] = b.add(anchors.face_index, ftype, "SCALAR")
-
-    bary = anchors.barycentrics
-    q = quant.get("barycentrics")
-    if q is not None and bool(np.all((bary >= 0.0) & (bary <= 1.0))):
-        ctype, top = q
-        codes = np.round(bary.astype(np.float64) * top)
+    if encoded.barycentrics is not None:
+        codes, ctype = encoded.barycentrics
         obj["barycentrics"] = b.add(codes, ctype, "VEC2", normalized=True)
     else:
-        obj["barycentrics"] = b.add(bary, FLOAT, "VEC2")
-
+        obj["barycentrics"] = b.add(anchors.barycentrics, FLOAT, "VEC2")
     if isinstance(anchors, LocalAnchors):
         obj["normalOffset"] = b.add(anchors.normal_offset, FLOAT, "SCALAR")
-        rot = _unit_quaternions(anchors.local_rotation)
-        q = quant.get("localRotation")
-        if q is not None:
-            ctype, top = q
-            codes = np.clip(np.round(rot.astype(np.float64) * top), -top, top)
+        if encoded.local_rotation is not None:
+            codes, ctype = encoded.local_rotation
             obj["localRotation"] = b.add(codes, ctype, "VEC4", normalized=True)
         else:
-            obj["localRotation"] = b.add(rot, FLOAT, "VEC4")
-        if np.array_equal(anchors.local_scale, prim.splats.scales):
+            obj["localRotation"] = b.add(anchors.local_rotation, FLOAT, "VEC4")
+        if np.array_equal(anchors.local_scale, splats.scales):
             obj["localScale"] = scale_accessor
         else:
             obj["localScale"] = b.add(anchors.local_scale, FLOAT, "VEC3")
@@ -280,7 +323,11 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     ``quantize`` optionally stores anchor accessors as normalized integers:
     ``{"barycentrics": "unsigned_short" | "unsigned_byte",
     "localRotation": "short" | "byte"}``. Barycentrics stay FLOAT for a primitive whose
-    barycentrics are not all in [0, 1]. Raises :class:`UsageError` for data glTF cannot hold.
+    barycentrics are not all in [0, 1]. Quantizing moves the anchored splats: the stored rest
+    pose is then the remap of the anchors as stored (dequantized), so that the asset stays
+    self-consistent (spec §Rest-pose consistency); the move is at most about half a
+    quantization step of each property (for 8-bit barycentrics, 1/510 of a triangle edge).
+    Raises :class:`UsageError` for data glTF cannot hold.
     """
     quant = _check_quantize(quantize)
     prims = list(asset.primitives)
@@ -299,7 +346,11 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     meshes: list[pygltflib.Mesh | None] = [None] * (len(prims) + len(anchor_meshes))
     nodes: list[pygltflib.Node] = []
     for i, prim in enumerate(prims):
+        encoded = None
         c = prim.splats
+        if prim.anchoring is not None:
+            encoded = _encode_anchors(prim.anchoring.anchors, quant)
+            c = _rest_pose_of(prim, encoded)
         attrs: dict[str, int] = {"POSITION": b.add(c.means, FLOAT, "VEC3", target=ARRAY_BUFFER,
                                                    minmax=True)}
         attrs[ROTATION] = b.add(_unit_quaternions(c.rotations), FLOAT, "VEC4", target=ARRAY_BUFFER)
@@ -324,7 +375,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
                     attributes=pygltflib.Attributes(POSITION=pos), indices=idx,
                     mode=pygltflib.TRIANGLES)], weights=None,
                     name=f"{prim.name} anchor mesh" if prim.name else "anchor mesh")
-            khr["extensions"] = {ANCHOR: _write_anchors(b, prim, m, attrs[SCALE], quant)}
+            khr["extensions"] = {ANCHOR: _write_anchors(b, prim, encoded, c, m, attrs[SCALE])}
         primitive = pygltflib.Primitive(attributes=pygltflib.Attributes(**attrs),
                                         mode=pygltflib.POINTS, extensions={KHR: khr})
         meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
