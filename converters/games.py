@@ -45,7 +45,8 @@ from ..model import Anchoring, GamesAnchors, SplatCloud, TriangleMesh
 from ..remap import remap
 from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
 from .base import SourceOptions, SourceResult
-from .sugar import as_array, load_torch_checkpoint, mean_tolerance
+from .checkpoint import as_array, load_torch_checkpoint
+from .sugar import mean_tolerance
 
 __all__ = ["load", "normalize_alpha", "BLENDER_MESH_TO_TRAINING", "Z_UP_TO_GLTF"]
 
