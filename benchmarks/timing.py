@@ -36,8 +36,10 @@ def cpu_busy_seconds() -> float | None:
 
 
 def _own_cpu() -> float:
+    """CPU seconds of this process and of its finished children (work it delegated, such as
+    the child process that parses USD files, is not load from other processes)."""
     t = os.times()
-    return t.user + t.system
+    return t.user + t.system + t.children_user + t.children_system
 
 
 @dataclass
