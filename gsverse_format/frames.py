@@ -54,15 +54,16 @@ def _edges(tri: np.ndarray):
     e3 = tri[:, 2] - tri[:, 1]
     cross = np.cross(e1, e2)
     area2 = _norm(cross)
-    lengths = np.stack([_norm(e1), _norm(e2), _norm(e3)], axis=-1)
-    longest = lengths.max(axis=-1)
-    return e1, e2, e3, cross, area2, lengths, longest
+    # squared lengths: the longest edge and its ties are decided on |e|² (spec §Triangle frames)
+    squared = np.stack([_dot(e1, e1), _dot(e2, e2), _dot(e3, e3)], axis=-1)
+    longest2 = squared.max(axis=-1)
+    return e1, e2, e3, cross, area2, squared, longest2
 
 
 def degenerate_mask(tri: np.ndarray) -> np.ndarray:
     """(F,) bool: triangles with ``|e1 × e2| <= EPS_DEGENERATE · ℓ²`` (ℓ = longest edge)."""
-    _, _, _, _, area2, _, longest = _edges(np.asarray(tri, dtype=np.float64))
-    return area2 <= EPS_DEGENERATE * longest * longest
+    _, _, _, _, area2, _, longest2 = _edges(np.asarray(tri, dtype=np.float64))
+    return area2 <= EPS_DEGENERATE * longest2
 
 
 @dataclass
@@ -72,7 +73,9 @@ class LocalFrames:
     * ``rotation`` (F, 3, 3): columns ``[t, b, n]`` (right-handed, orthonormal).
     * ``shape``    (F, 2, 2): edge matrix ``C`` with columns = (e1, e2) in (t, b) coordinates;
       upper triangular ``[[|e1|, e2·t], [0, a/|e1|]]`` for regular triangles.
-    * ``area2``    (F,): doubled area ``a`` (0 for degenerate triangles).
+    * ``area2``    (F,): doubled area ``a = |e1 × e2|`` (the true value, also for degenerate
+      triangles: spec v1.1 no longer sets it to 0).
+    * ``cross``    (F, 3): ``e1 × e2``.
     * ``regular``  (F,): True where the triangle is not degenerate.
     """
 
@@ -81,6 +84,7 @@ class LocalFrames:
     shape: np.ndarray
     area2: np.ndarray
     regular: np.ndarray
+    cross: np.ndarray | None = None
 
     @property
     def normal(self) -> np.ndarray:
@@ -91,15 +95,16 @@ def local_frames(tri: np.ndarray) -> LocalFrames:
     """Frames of the ``local`` profile for triangles (F, 3, 3) (spec §Triangle frames).
 
     Regular triangle: t = e1/|e1|, n = (e1 × e2)/a, b = n × t.
-    Degenerate, ℓ > 0 (a segment): t = unit vector of the longest of (e1, e2, e2 − e1), first on
-    ties; n = perpendicular_unit(t); b = n × t; C = [[e1·t, e2·t], [0, 0]]; a := 0.
-    All corners coincide (ℓ = 0): t, b, n = x, y, z axes; C = 0; a := 0.
+    Degenerate, ℓ > 0 (a segment): t = unit vector of the longest of (e1, e2, e2 − e1) by
+    squared length, the first on exact ties; n = perpendicular_unit(t); b = n × t;
+    C = [[e1·t, e2·t], [0, 0]].
+    All corners coincide (ℓ = 0): t, b, n = x, y, z axes; C = 0.
     """
     tri = np.asarray(tri, dtype=np.float64)
-    e1, e2, e3, cross, area2, lengths, longest = _edges(tri)
+    e1, e2, e3, cross, area2, squared, longest2 = _edges(tri)
     f = tri.shape[0]
-    regular = area2 > EPS_DEGENERATE * longest * longest
-    point = longest == 0.0
+    regular = area2 > EPS_DEGENERATE * longest2
+    point = longest2 == 0.0
     line = ~regular & ~point
 
     t = np.zeros((f, 3))
@@ -107,16 +112,16 @@ def local_frames(tri: np.ndarray) -> LocalFrames:
     shape = np.zeros((f, 2, 2))
 
     if np.any(regular):
-        len1 = lengths[regular, 0]
+        len1 = np.sqrt(squared[regular, 0])
         t[regular] = e1[regular] / len1[:, None]
         n[regular] = cross[regular] / area2[regular, None]
         shape[regular, 0, 0] = len1
         shape[regular, 0, 1] = _dot(e2[regular], t[regular])
         shape[regular, 1, 1] = area2[regular] / len1
     if np.any(line):
-        which = np.argmax(lengths[line], axis=-1)  # argmax returns the first maximum
+        which = np.argmax(squared[line], axis=-1)  # argmax returns the first maximum
         d = np.stack([e1[line], e2[line], e3[line]], axis=1)[np.arange(which.size), which]
-        t[line] = d / _norm(d)[:, None]
+        t[line] = d / np.sqrt(longest2[line])[:, None]
         n[line] = perpendicular_unit(t[line])
         shape[line, 0, 0] = _dot(e1[line], t[line])
         shape[line, 0, 1] = _dot(e2[line], t[line])
@@ -125,43 +130,74 @@ def local_frames(tri: np.ndarray) -> LocalFrames:
         n[point] = (0.0, 0.0, 1.0)
     b = np.cross(n, t)
     rotation = np.stack([t, b, n], axis=-1)
-    return LocalFrames(tri[:, 0].copy(), rotation, shape, np.where(regular, area2, 0.0), regular)
+    return LocalFrames(tri[:, 0].copy(), rotation, shape, area2, regular, cross)
 
 
 def games_frames(tri: np.ndarray):
     """GaMeS frame and base scales for triangles (F, 3, 3) (spec §The games profile).
 
-    Returns ``(rotation (F,3,3) with columns [n, b1, b2], base_scales (F,3), centroid (F,3))``
-    where, with c the centroid and w = v2 − c:
+    Returns ``(rotation (F,3,3) with columns [n, b1, b2], base_scales (F,3), centroid (F,3))``.
+    Everything is relative to the first corner: g = c − v0 = (e1 + e2)/3, u = v1 − c = e1 − g,
+    w = v2 − c = e2 − g, ℓ the longest edge, a = |e1 × e2|.
 
-    * n  = (e1 × e2)/a;  b1 = (v1 − c)/|v1 − c|;  b2 = unit(w − (w·n) n − (w·b1) b1) = n × b1;
-    * base scales s = (ε, (|v1 − c| + ε)/2, (w·b2)/2) with ε = GAMES_EPS (GaMeS's values).
+    * regular (a > ε_deg ℓ²): n = (e1 × e2)/a;  b1 = u/|u|;  b2 = n × b1;
+    * degenerate, |u| > ε_deg ℓ: b1 = u/|u|; r = w − (w·b1) b1; b2 = r/|r| if |r| > ε_deg ℓ,
+      else perpendicular_unit(b1); n = b1 × b2;
+    * degenerate, |u| ≤ ε_deg ℓ, ℓ > 0 (v1 at the centroid: v1 is the midpoint of v0v2):
+      b2 = w/|w|; b1 = perpendicular_unit(b2); n = b1 × b2 (the splat lies along w, as
+      GaMeS's ε-regularized normalization gives);
+    * ℓ = 0: n, b1, b2 = z, x, y.
 
-    Degenerate triangles: b1 = unit(v1 − c) if v1 ≠ c, else unit(v2 − c) if v2 ≠ c, else x;
-    n = perpendicular_unit(b1); b2 = n × b1. (The in-plane base scale then follows from w·b2.)
+    Base scales s = (ε, (|u| + ε)/2, (w·b2)/2) with ε = GAMES_EPS (GaMeS's values). In exact
+    arithmetic the degenerate rules give the regular frame wherever both apply, so the frame
+    is continuous across the threshold.
     """
     tri = np.asarray(tri, dtype=np.float64)
-    _, _, _, cross, area2, _, longest = _edges(tri)
-    regular = area2 > EPS_DEGENERATE * longest * longest
-    c = tri.mean(axis=1)
-    u1 = tri[:, 1] - c
-    w = tri[:, 2] - c
-    len_u1 = _norm(u1)
-
-    b1 = np.zeros_like(u1)
-    ok1 = len_u1 > 0.0
-    b1[ok1] = u1[ok1] / len_u1[ok1, None]
+    e1, e2, _, cross, area2, _, longest2 = _edges(tri)
+    regular = area2 > EPS_DEGENERATE * longest2
+    ell = np.sqrt(longest2)
+    g = (e1 + e2) / 3.0
+    c = tri[:, 0] + g
+    u = e1 - g
+    w = e2 - g
+    len_u = _norm(u)
     len_w = _norm(w)
-    use_w = ~ok1 & (len_w > 0.0)
-    b1[use_w] = w[use_w] / len_w[use_w, None]
-    b1[~ok1 & ~use_w] = (1.0, 0.0, 0.0)
+    f = len(tri)
+    n = np.zeros((f, 3))
+    b1 = np.zeros((f, 3))
+    b2 = np.zeros((f, 3))
 
-    n = np.zeros_like(u1)
-    n[regular] = cross[regular] / area2[regular, None]
-    n[~regular] = perpendicular_unit(b1[~regular])
-    # For a regular triangle the Gram–Schmidt residual of w is parallel to n × b1 with a
-    # positive coefficient (w·(n × b1) = a / (3 |v1 − c|) > 0), so b2 = n × b1 exactly.
-    b2 = np.cross(n, b1)
-    base = np.stack([np.full(len(tri), GAMES_EPS), (len_u1 + GAMES_EPS) / 2.0, _dot(w, b2) / 2.0], -1)
+    # a = 3 |u × w| <= 3 |u| |w| <= 2 |u| ℓ: a regular triangle has |u| > ε_deg ℓ / 2 > 0
+    reg = regular
+    has_u = regular | (len_u > EPS_DEGENERATE * ell)
+    b1[has_u] = u[has_u] / len_u[has_u, None]
+    n[reg] = cross[reg] / area2[reg, None]
+    b2[reg] = np.cross(n[reg], b1[reg])
+
+    deg_u = ~reg & has_u
+    if np.any(deg_u):
+        bb = b1[deg_u]
+        r = w[deg_u] - _dot(w[deg_u], bb)[:, None] * bb
+        len_r = _norm(r)
+        ok = len_r > EPS_DEGENERATE * ell[deg_u]
+        second = np.empty_like(bb)
+        second[ok] = r[ok] / len_r[ok, None]
+        if np.any(~ok):
+            second[~ok] = perpendicular_unit(bb[~ok])
+        b2[deg_u] = second
+        n[deg_u] = np.cross(bb, second)
+
+    mid = ~has_u & (longest2 > 0.0)
+    if np.any(mid):
+        b2[mid] = w[mid] / len_w[mid, None]
+        b1[mid] = perpendicular_unit(b2[mid])
+        n[mid] = np.cross(b1[mid], b2[mid])
+
+    point = longest2 == 0.0
+    n[point] = (0.0, 0.0, 1.0)
+    b1[point] = (1.0, 0.0, 0.0)
+    b2[point] = (0.0, 1.0, 0.0)
+
+    base = np.stack([np.full(f, GAMES_EPS), (len_u + GAMES_EPS) / 2.0, _dot(w, b2) / 2.0], -1)
     rotation = np.stack([n, b1, b2], axis=-1)
     return rotation, base, c

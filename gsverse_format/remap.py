@@ -9,9 +9,13 @@ For splat i on face f with current corners (v0, v1, v2), e1 = v1 − v0, e2 = v2
 scale S_l; rest frame R_r, edge matrix C_r, doubled area a_r; current frame R_c, C_c, a_c)::
 
     k      = sqrt(a_c / a_r)                        # normal-axis / isotropic size factor
-    mean   = v0 + b1 e1 + b2 e2 + d k n_c
-    affine: G = blockdiag(C_c C_r⁻¹, k);  M = G R_l S_l;  Σ = R_c M Mᵀ R_cᵀ
-    rigid:  Σ = k² (R_c R_l) S_l² (R_c R_l)ᵀ
+    m      = (e1 × e2) / sqrt(a_c a_r)  (0 when a_c = 0)   # = k n_c, continuous as a_c -> 0
+    mean   = v0 + b1 e1 + b2 e2 + d m
+    affine: A = [E_c C_r⁻¹ | m]  (E_c = [e1 e2], 3×2)      # = R_c blockdiag(C_c C_r⁻¹, k)
+    rigid:  A = k R_c
+    Σ = A R_l S_l² R_lᵀ Aᵀ
+
+    faces degenerate at rest: k := 1, m := n_c, A := R_c (G := I), both laws
 
 ``games`` profile (barycentrics (α1, α2), ρ; frame [n, b1, b2] and base scales s of the current
 triangle, see :func:`gsverse_format.frames.games_frames`)::
@@ -35,7 +39,7 @@ from .frames import GAMES_EPS, games_frames, local_frames
 from .model import Anchoring, GamesAnchors, LocalAnchors, SplatCloud
 
 __all__ = ["RemapResult", "remap", "remap_primitive_splats", "RestData", "prepare_rest",
-           "remap_moments", "iter_moments", "covariance_entries",
+           "remap_moments", "iter_moments", "covariance_entries", "face_matrices",
            "covariances_from"]
 
 _PERMUTATIONS = np.array([[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]])
@@ -56,9 +60,10 @@ class RemapResult:
 class RestData:
     """Per-face data of the rest mesh a plugin precomputes once (``local`` profile).
 
-    ``inverse_shape`` is C_r⁻¹ and ``area2`` the rest doubled area. For faces that are
-    degenerate at rest (``regular`` False) the spec's rule applies: C_r⁻¹ := identity and
-    k := 1 (see :func:`_size_factor`).
+    ``inverse_shape`` is C_r⁻¹ and ``area2`` the rest doubled area, computed in float64 (spec
+    v1.1 §Precision: rest quantities in double precision). For faces that are degenerate at
+    rest (``regular`` False) the spec's rule applies: G := I and k := 1 (see
+    :func:`face_matrices`); their ``inverse_shape`` is the identity and is not used.
     """
 
     rotation: np.ndarray
@@ -86,11 +91,40 @@ def _rest_from_frames(frames) -> RestData:
 
 
 def _size_factor(current_area2: np.ndarray, rest: RestData, face: np.ndarray) -> np.ndarray:
-    """k = sqrt(a_c / a_r) per splat; k = 1 on faces degenerate at rest (spec rule)."""
+    """k = sqrt(a_c / a_r) per splat (a_c the true doubled area); k = 1 on faces degenerate
+    at rest (spec rule)."""
     a_r = rest.area2[face]
     reg = rest.regular[face]
     safe = np.where(reg, a_r, 1.0)
     return np.where(reg, np.sqrt(current_area2[face] / safe), 1.0)
+
+
+def face_matrices(rest: RestData, cur, tri: np.ndarray, deformation: str):
+    """Per face: size factor k (F,), scaled normal m = k n_c (F, 3) and the matrix A (F, 3, 3)
+    with Σ = A R_l S_l² R_lᵀ Aᵀ (spec §Remap: the local profile).
+
+    Faces regular at rest: k = sqrt(a_c/a_r), m = (e1 × e2)/(sqrt(a_c) sqrt(a_r)) (0 when
+    a_c = 0), A = [E_c C_r⁻¹ | m] (affine) or k R_c (rigid). Faces degenerate at rest: k = 1,
+    m = n_c, A = R_c.
+    """
+    f = len(tri)
+    reg = rest.regular
+    e = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]], axis=-1)   # (F, 3, 2)
+    root_r = np.sqrt(np.where(reg, rest.area2, 1.0))
+    root_c = np.sqrt(cur.area2)
+    k = np.where(reg, root_c / root_r, 1.0)
+    cross = cur.cross if cur.cross is not None else np.cross(e[:, :, 0], e[:, :, 1])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        m = np.where((root_c > 0.0)[:, None], cross / (root_c * root_r)[:, None], 0.0)
+    m = np.where(reg[:, None], m, cur.rotation[:, :, 2])
+    if deformation == "rigid":
+        a = cur.rotation * k[:, None, None]
+    else:
+        a = np.empty((f, 3, 3))
+        a[:, :, :2] = e @ rest.inverse_shape
+        a[:, :, 2] = m
+        a[~reg] = cur.rotation[~reg]
+    return k, m, a
 
 
 def _align_axes(u: np.ndarray, sigma: np.ndarray, reference: np.ndarray):
@@ -117,30 +151,25 @@ def _align_axes(u: np.ndarray, sigma: np.ndarray, reference: np.ndarray):
 def _remap_local(anchors: LocalAnchors, rest: RestData, tri: np.ndarray) -> RemapResult:
     face = anchors.face_index.astype(np.intp)
     cur = local_frames(tri)
+    k, m, a = face_matrices(rest, cur, tri, anchors.deformation)
     b = anchors.barycentrics.astype(np.float64)
     d = anchors.normal_offset.astype(np.float64)
-    k = _size_factor(cur.area2, rest, face)
 
     v0 = tri[face, 0]
     e1 = tri[face, 1] - v0
     e2 = tri[face, 2] - v0
     r_c = cur.rotation[face]
-    means = v0 + b[:, 0:1] * e1 + b[:, 1:2] * e2 + (d * k)[:, None] * r_c[:, :, 2]
+    means = v0 + b[:, 0:1] * e1 + b[:, 1:2] * e2 + d[:, None] * m[face]
 
     r_l = quat.to_matrix(anchors.local_rotation)
     s_l = anchors.local_scale.astype(np.float64)
     if anchors.deformation == "rigid":
         rot = r_c @ r_l
-        scales = s_l * k[:, None]
+        scales = s_l * k[face][:, None]
     else:
-        g = np.zeros((len(face), 3, 3))
-        g[:, :2, :2] = cur.shape[face] @ rest.inverse_shape[face]
-        g[:, 2, 2] = k
-        m = g @ (r_l * s_l[:, None, :])
-        u, sigma, _ = np.linalg.svd(m)
-        u, sigma = _align_axes(u, sigma, r_l)
-        rot = r_c @ u
-        scales = sigma
+        mm = a[face] @ (r_l * s_l[:, None, :])
+        u, sigma, _ = np.linalg.svd(mm)
+        rot, scales = _align_axes(u, sigma, r_c @ r_l)
     rs = rot * scales[:, None, :]
     cov = rs @ np.swapaxes(rs, 1, 2)
     return RemapResult(means, quat.from_matrix(rot), scales, cov)
@@ -150,8 +179,9 @@ def _remap_games(anchors: GamesAnchors, tri: np.ndarray) -> RemapResult:
     face = anchors.face_index.astype(np.intp)
     rotation, base, _ = games_frames(tri)
     a = anchors.barycentrics.astype(np.float64)
-    alpha = np.concatenate([1.0 - a.sum(axis=1, keepdims=True), a], axis=1)
-    means = np.einsum("nm,nmx->nx", alpha, tri[face])
+    v0 = tri[face, 0]
+    # μ = α0 v0 + α1 v1 + α2 v2, evaluated relative to the first corner
+    means = v0 + a[:, 0:1] * (tri[face, 1] - v0) + a[:, 1:2] * (tri[face, 2] - v0)
     rho = anchors.rho.astype(np.float64)[:, None]
     scales = np.maximum(rho * base[face], 0.0) + GAMES_EPS
     rot = rotation[face]
@@ -240,23 +270,14 @@ def _store(cov: np.ndarray, entries: tuple) -> None:
 
 def _face_table_local(anchors: LocalAnchors, rest: RestData, tri: np.ndarray,
                       cur=None) -> np.ndarray:
-    """Per face, as rows: v0 (3), e1 (3), e2 (3), k·n_c (3) and the 3x3 matrix A (9, row-major)
-    with Σ = A R_l S_l² R_lᵀ Aᵀ: A = R_c G (affine) or k R_c (rigid). ``cur`` may pass the
+    """Per face, as rows: v0 (3), e1 (3), e2 (3), m = k·n_c (3) and the 3x3 matrix A (9,
+    row-major) with Σ = A R_l S_l² R_lᵀ Aᵀ (see :func:`face_matrices`). ``cur`` may pass the
     current frames when they are already known."""
     if cur is None:
         cur = local_frames(tri)
-    safe = np.where(rest.regular, rest.area2, 1.0)
-    k = np.where(rest.regular, np.sqrt(cur.area2 / safe), 1.0)
-    if anchors.deformation == "rigid":
-        a = cur.rotation * k[:, None, None]
-    else:
-        g = np.zeros((len(tri), 3, 3))
-        g[:, :2, :2] = cur.shape @ rest.inverse_shape
-        g[:, 2, 2] = k
-        a = cur.rotation @ g
+    _, m, a = face_matrices(rest, cur, tri, anchors.deformation)
     v0 = tri[:, 0]
-    table = np.concatenate([v0, tri[:, 1] - v0, tri[:, 2] - v0, cur.rotation[:, :, 2] * k[:, None],
-                            a.reshape(-1, 9)], axis=1)
+    table = np.concatenate([v0, tri[:, 1] - v0, tri[:, 2] - v0, m, a.reshape(-1, 9)], axis=1)
     return np.ascontiguousarray(table.T)
 
 

@@ -69,6 +69,10 @@ class RemapCase:
     #: codes ``gsverse-validate`` reports for the asset although a plugin must remap it
     validator_codes: list[str] = field(default_factory=list)
     note: str = ""
+    #: applied to the written, rest-consistent GLB (JSON document, binary chunk): re-encodes
+    #: data in other valid layouts (byteStride, quantized rest pose, no indices, node
+    #: transforms); the expected outputs are computed from the edited file as read back
+    edit: Callable[[dict, bytes], tuple[dict, bytes]] | None = None
 
 
 @dataclass
@@ -815,8 +819,10 @@ def _extreme_cases() -> list[RemapCase]:
 
 def remap_cases() -> list[RemapCase]:
     """All remap cases, in suite order."""
+    from .cases_rules import rule_cases   # that module builds on the helpers of this one
+
     return (_source_cases() + _per_face_cases() + _vertex_edge_cases() + _quantized_cases()
-            + _face_index_cases() + _extreme_cases())
+            + _face_index_cases() + _extreme_cases() + rule_cases())
 
 
 # --------------------------------------------------------------------------- invalid assets

@@ -163,13 +163,19 @@ def _check_means(got, ref, atol, dump, pose) -> Check:
     return _worst("mean", dump, pose, err, np.full(len(err), atol))
 
 
+def _pose_tolerance(tol: dict, key: str, pose: int | None) -> float:
+    """The tolerance of pose ``pose`` (the rest dump: pose 0), or the case's."""
+    per = tol.get("per_pose")
+    return float(per[pose or 0]) if per else float(tol[key])
+
+
 def _check_cov(got, ref, rest_ref, tol: dict, dump, pose) -> Check:
     err = np.linalg.norm(got - ref, axis=(1, 2))
     err = np.where(np.all(np.isfinite(got), axis=(1, 2)), err, np.inf)
     scale = np.maximum(np.linalg.norm(ref, axis=(1, 2)),
                        tol["floor"] * np.linalg.norm(rest_ref, axis=(1, 2)))
     scale = np.where(scale > 0, scale, np.finfo(np.float64).tiny)
-    return _worst("covariance", dump, pose, err, tol["rtol"] * scale)
+    return _worst("covariance", dump, pose, err, _pose_tolerance(tol, "rtol", pose) * scale)
 
 
 def _check_values(quantity, got, ref, atol, rtol, dump, pose) -> Check:
@@ -207,7 +213,7 @@ def _check_remap(case_dir: Path, manifest: dict, folder: Path) -> CaseResult:
         opacity = ref(files["rest"]["opacity"], (n,))
         sh = ref(files["rest"]["sh"], (n, k, 3))
         checks.append(_check_means(_read(folder, "rest.means", (n, 3)), rest_means,
-                                   tol["mean"]["atol"], "rest", None))
+                                   _pose_tolerance(tol["mean"], "atol", None), "rest", None))
         checks.append(_check_cov(_read_cov(folder, "rest", n), rest_cov, rest_cov,
                                  tol["covariance"], "rest", None))
         for stem, expected, quantity, t in (("rest", opacity, "opacity", tol["opacity"]),
@@ -220,7 +226,8 @@ def _check_remap(case_dir: Path, manifest: dict, folder: Path) -> CaseResult:
         for p, exp in enumerate(files["poses"]):
             stem = f"pose_{p:03d}"
             checks.append(_check_means(_read(folder, f"{stem}.means", (n, 3)),
-                                       ref(exp["means"], (n, 3)), tol["mean"]["atol"], stem, p))
+                                       ref(exp["means"], (n, 3)),
+                                       _pose_tolerance(tol["mean"], "atol", p), stem, p))
             checks.append(_check_cov(_read_cov(folder, stem, n),
                                      _cov_matrix(ref(exp["cov"], (n, 6))), rest_cov,
                                      tol["covariance"], stem, p))

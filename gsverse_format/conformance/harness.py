@@ -218,8 +218,8 @@ class FastPlugin(ReferencePlugin):
 class RawReferencePlugin:
     """:mod:`.minimal_reader` as importer, ``dequantize_fn`` for the anchors, reference remap.
 
-    ``renormalize`` rescales integer-quantized quaternions to unit length, as the spec
-    requires (turn it off to see what happens when an importer forgets).
+    ``renormalize`` rescales every quaternion (float and integer-quantized) to unit length,
+    as the spec requires (turn it off to see what happens when an importer forgets).
     """
 
     name = "minimal_reader + gsverse_format.remap"
@@ -231,7 +231,7 @@ class RawReferencePlugin:
 
     def _quat(self, raw: Raw) -> np.ndarray:
         q = self.deq(raw)
-        if self.renormalize and raw.component_type != 5126:
+        if self.renormalize:
             q = q / np.linalg.norm(q, axis=1, keepdims=True)
         return q
 
