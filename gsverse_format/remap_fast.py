@@ -3,34 +3,44 @@
 Same mathematics as the float64 reference :mod:`gsverse_format.remap` (``spec/README.md``
 §Remap), reorganized for speed and stored in float32:
 
-1. **Once per asset** (:class:`FastRemapper` construction): rest-face data (C_r⁻¹, rest doubled
-   area, regular flag; computed in float64 by :func:`gsverse_format.remap.prepare_rest`) and
-   per-splat constants. For the ``local`` profile the splat-side constant is the 3×3 matrix
+1. **Once per asset** (:class:`FastRemapper` construction): rest-face data (C_r⁻¹, √a_r of the
+   rest doubled area, regular flag; computed in float64 from the stored float32 rest vertices by
+   :func:`gsverse_format.remap.prepare_rest`, as spec §Precision requires, and kept in float64)
+   and per-splat constants. For the ``local`` profile the splat-side constant is the 3×3 matrix
    ``L = R_l S_l`` (rotation matrix of the local quaternion times its scales), so that no
    quaternion or ``exp`` work is left per frame.
 2. **Per frame, per face** (one pass over F faces, computed in float64, stored as float32): the
-   current frame, the edge matrix, the size factor k, and the matrix ``A`` that maps the splat's
-   rest-frame factor to world space:
+   size factor ``k = √(a_c/a_r)`` (a_c the true current doubled area), the scaled normal
+   ``m = (e1 × e2)/(√a_c √a_r)`` (``m = 0`` when ``a_c = 0``; ``m = k n_c`` for regular current
+   triangles, continuous as a_c → 0) and the matrix ``A`` that maps the splat's rest-frame
+   factor to world space:
 
-   * ``local``/``affine``: ``A = R_c G`` with ``G = blockdiag(C_c C_r⁻¹, k)``;
-   * ``local``/``rigid``:  ``A = k R_c``;
-   * ``games``: the GaMeS frame ``[n, b1, b2]`` and the base scales.
+   * ``local``/``affine``: ``A = [E_c C_r⁻¹ | m]``, i.e. columns 0, 1 are ``E_c C_r⁻¹`` with
+     ``E_c = [e1 e2]`` (3×2) and column 2 is m (equal to ``R_c blockdiag(C_c C_r⁻¹, k)`` for
+     regular current triangles; no current frame is involved);
+   * ``local``/``rigid``:  ``A = k R_c`` (R_c = [t b n] the current frame);
+   * faces degenerate at rest (both laws): ``k = 1``, ``m = n_c``, ``A = R_c``;
+   * ``games``: the GaMeS frame ``[n, b1, b2]`` (built from g = (e1 + e2)/3, u = e1 − g,
+     w = e2 − g, relative to v0) and the base scales.
 
 3. **Per frame, per splat** (a streaming pass, parallel over splats): the mean
-   ``v0 + b1 e1 + b2 e2 + d k n`` and the covariance ``Σ = (A L)(A L)ᵀ`` (``local``) or
-   ``Σ = R diag(max(ρ s, 0) + ε)² Rᵀ`` (``games``), in float32.
+   ``v0 + b1 e1 + b2 e2 + d m`` and the covariance ``Σ = (A L)(A L)ᵀ`` (``local``), or the mean
+   ``v0 + α1 e1 + α2 e2`` and ``Σ = R diag(max(ρ s, 0) + ε)² Rᵀ`` (``games``), in float32.
 
 Outputs (:class:`RemapOutput`) are float32: means (N, 3) and the 6 unique covariance entries
 (N, 6) in the order ``xx, xy, xz, yy, yz, zz`` (:data:`COV6_ORDER`). Covariance is the normative
 output; rotation/scale pairs are produced on request for ``local``/``rigid`` (``q_c ⊗ q_l`` and
-``k s_l``) and ``games`` (the face frame's quaternion and the GaMeS scales). The ``affine`` law
-has no cheap rotation/scale pair (the reference takes an SVD per splat); use the reference
-remap when one is needed.
+``k s_l``, k = 1 on faces degenerate at rest) and ``games`` (the face frame's quaternion and the
+GaMeS scales). The ``affine`` law has no cheap rotation/scale pair (the reference takes an SVD
+per splat); use the reference remap when one is needed.
 
 Precision (float32 result against the float64 reference, u = 2⁻²⁴ the float32 unit roundoff;
 checked by ``tests/test_remap_fast.py`` and ``tests/test_stability.py``):
 
-* means: ``|Δμ| <= 16 u (|v0| + |b1| |e1| + |b2| |e2| + |d| k)``;
+* means: ``|Δμ| <= 16 u (|v0| + |b1| |e1| + |b2| |e2| + |d| k) + |d| ν`` where, on faces
+  regular at rest, ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1| |e2| of the current
+  triangle) bounds the float32 error of the normal term d·m, and ν = 0 on faces degenerate at
+  rest (k = 1 there);
 * ``local`` covariances: ``‖ΔΣ‖_F <= 64 u ‖A‖_F² ‖L‖_F²`` (``‖L‖_F² = Σ s_l²``, the trace of
   the rest covariance). Relative to ‖Σ‖_F this is at most ``576 u κ(A)²`` (κ the condition
   number of A; ‖A‖_F² ≤ 3‖A‖₂², ‖L‖_F² ≤ 3‖L‖₂², ‖Σ‖_F ≥ σ_min(A)² ‖L‖₂²); the tests also
@@ -168,7 +178,7 @@ if numba is not None:
                      a00, a01, a02, a10, a11, a12, a20, a21, a22):  # pragma: no cover - compiled
         """Mean and the six covariance entries of one ``local`` splat (float32, explicit FMAs).
 
-        ``c``: b1, b2, d, L row-major; the rest: the face's v0, e1, e2, k n and A."""
+        ``c``: b1, b2, d, L row-major; the rest: the face's v0, e1, e2, the scaled normal m and A."""
         b1, b2, d = c[0], c[1], c[2]
         mx = _fma(d, nx, _fma(b2, e2x, _fma(b1, e1x, x0)))
         my = _fma(d, ny, _fma(b2, e2y, _fma(b1, e1y, y0)))
@@ -247,11 +257,15 @@ if numba is not None:
 
     @njit(cache=True, inline="always")
     def _local_face(vertices, faces, rest, rigid, f):  # pragma: no cover - compiled
-        """Current frame and remap matrix of face ``f`` (``local`` profile, float64).
+        """Current frame and remap quantities of face ``f`` (``local`` profile, float64).
 
-        ``rest`` (F, 5) float64: C_r⁻¹ entries (i00, i01, i11), rest doubled area, regular flag.
-        Returns v0 (3), e1 (3), e2 (3), k, the frame t, b, n (3 × 3) and A row-major (9), where
-        A = R_c G (affine) or k R_c (rigid).
+        ``rest`` (F, 5) float64: C_r⁻¹ entries (i00, i01, i11), √a_r and the regular flag (all
+        computed in float64 from the stored rest vertices). Returns v0 (3), e1 (3), e2 (3), k,
+        the current frame t, b, n (3 × 3), the scaled normal m (3) and A row-major (9).
+
+        Faces regular at rest: k = √(a_c/a_r), m = (e1 × e2)/(√a_c √a_r) (0 when a_c = 0),
+        A = [E_c C_r⁻¹ | m] (affine) or k R_c (rigid). Faces degenerate at rest: k = 1,
+        m = n_c, A = R_c (both laws).
         """
         i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
         x0 = np.float64(vertices[i0, 0])
@@ -267,21 +281,20 @@ if numba is not None:
         cx = e1y * e2z - e1z * e2y
         cy = e1z * e2x - e1x * e2z
         cz = e1x * e2y - e1y * e2x
-        a = np.sqrt(cx * cx + cy * cy + cz * cz)
+        a = np.sqrt(cx * cx + cy * cy + cz * cz)       # the true a_c, also when degenerate
         q1 = e1x * e1x + e1y * e1y + e1z * e1z
         q2 = e2x * e2x + e2y * e2y + e2z * e2z
         q3 = e3x * e3x + e3y * e3y + e3z * e3z
         lmax2 = max(q1, max(q2, q3))
+        # The current frame R_c = [t b n] (spec §Triangle frames): used by the rigid law, by
+        # faces degenerate at rest and for the rotation of rigid pairs.
         if a > _EPS_DEG * lmax2:
-            l1 = np.sqrt(q1)
-            r1 = 1.0 / l1
+            r1 = 1.0 / np.sqrt(q1)
             ra = 1.0 / a
             tx, ty, tz = e1x * r1, e1y * r1, e1z * r1
             nx, ny, nz = cx * ra, cy * ra, cz * ra
-            c00 = l1
-            c01 = e2x * tx + e2y * ty + e2z * tz
-            c11 = a * r1
         elif lmax2 > 0.0:
+            # the longest edge by squared length, the first of (e1, e2, e3) on exact ties
             if q1 == lmax2:
                 dx, dy, dz = e1x, e1y, e1z
             elif q2 == lmax2:
@@ -291,53 +304,54 @@ if numba is not None:
             rd = 1.0 / np.sqrt(lmax2)
             tx, ty, tz = dx * rd, dy * rd, dz * rd
             nx, ny, nz = _perp(tx, ty, tz)
-            c00 = e1x * tx + e1y * ty + e1z * tz
-            c01 = e2x * tx + e2y * ty + e2z * tz
-            c11 = 0.0
-            a = 0.0
         else:
             tx, ty, tz = 1.0, 0.0, 0.0
             nx, ny, nz = 0.0, 0.0, 1.0
-            c00 = 0.0
-            c01 = 0.0
-            c11 = 0.0
-            a = 0.0
         bx = ny * tz - nz * ty
         by = nz * tx - nx * tz
         bz = nx * ty - ny * tx
         if rest[f, 4] != 0.0:
-            k = np.sqrt(a / rest[f, 3])
-            i00, i01, i11 = rest[f, 0], rest[f, 1], rest[f, 2]
+            root_r = rest[f, 3]
+            root_c = np.sqrt(a)
+            k = root_c / root_r
+            if root_c > 0.0:
+                s = root_c * root_r
+                mx, my, mz = cx / s, cy / s, cz / s
+            else:
+                mx, my, mz = 0.0, 0.0, 0.0
+            if rigid:
+                a00, a01, a02 = k * tx, k * bx, k * nx
+                a10, a11, a12 = k * ty, k * by, k * ny
+                a20, a21, a22 = k * tz, k * bz, k * nz
+            else:
+                # columns 0, 1: E_c C_r⁻¹ with C_r⁻¹ = [[i00, i01], [0, i11]]; column 2: m
+                i00, i01, i11 = rest[f, 0], rest[f, 1], rest[f, 2]
+                a00, a01, a02 = e1x * i00, e1x * i01 + e2x * i11, mx
+                a10, a11, a12 = e1y * i00, e1y * i01 + e2y * i11, my
+                a20, a21, a22 = e1z * i00, e1z * i01 + e2z * i11, mz
         else:
             k = 1.0
-            i00, i01, i11 = 1.0, 0.0, 1.0
-        if rigid:
-            a00, a01, a02 = k * tx, k * bx, k * nx
-            a10, a11, a12 = k * ty, k * by, k * ny
-            a20, a21, a22 = k * tz, k * bz, k * nz
-        else:
-            g00 = c00 * i00
-            g01 = c00 * i01 + c01 * i11
-            g11 = c11 * i11
-            a00, a01, a02 = g00 * tx, g01 * tx + g11 * bx, k * nx
-            a10, a11, a12 = g00 * ty, g01 * ty + g11 * by, k * ny
-            a20, a21, a22 = g00 * tz, g01 * tz + g11 * bz, k * nz
+            mx, my, mz = nx, ny, nz
+            a00, a01, a02 = tx, bx, nx
+            a10, a11, a12 = ty, by, ny
+            a20, a21, a22 = tz, bz, nz
         return (x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, k,
-                tx, ty, tz, bx, by, bz, nx, ny, nz,
+                tx, ty, tz, bx, by, bz, nx, ny, nz, mx, my, mz,
                 a00, a01, a02, a10, a11, a12, a20, a21, a22)
 
     @njit(parallel=True, cache=True)
     def _local_faces(vertices, faces, rest, rigid, table, qface):  # pragma: no cover
         """Per-face pass of the ``local`` profile (float64 arithmetic, float32 table).
 
-        Table row: v0 (0:3), e1 (3:6), e2 (6:9), k n (9:12), A row-major (12:21), k (21).
+        Table row: v0 (0:3), e1 (3:6), e2 (6:9), m (9:12), A row-major (12:21), k (21).
         ``qface`` (F, 4) or (0, 4): quaternion of the current frame R_c when it has rows.
         """
         nf = faces.shape[0]
         want_q = qface.shape[0] == nf and nf > 0
         for f in prange(nf):
             (x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, k, tx, ty, tz, bx, by, bz, nx, ny, nz,
-             a00, a01, a02, a10, a11, a12, a20, a21, a22) = _local_face(vertices, faces, rest, rigid, f)
+             mx, my, mz, a00, a01, a02, a10, a11, a12, a20, a21, a22) = _local_face(
+                vertices, faces, rest, rigid, f)
             row = table[f]
             row[0] = x0
             row[1] = y0
@@ -348,9 +362,9 @@ if numba is not None:
             row[6] = e2x
             row[7] = e2y
             row[8] = e2z
-            row[9] = k * nx
-            row[10] = k * ny
-            row[11] = k * nz
+            row[9] = mx
+            row[10] = my
+            row[11] = mz
             row[12] = a00
             row[13] = a01
             row[14] = a02
@@ -443,29 +457,45 @@ if numba is not None:
             q2 = e2x * e2x + e2y * e2y + e2z * e2z
             q3 = e3x * e3x + e3y * e3y + e3z * e3z
             lmax2 = max(q1, max(q2, q3))
-            # The centroid exactly as numpy's mean computes it ((v0 + v1) + v2) / 3, so that a
-            # (near-)point triangle, whose b1 is the direction of v1 − c, gets the same frame.
-            gx = (x0 + x1 + x2) / 3.0
-            gy = (y0 + y1 + y2) / 3.0
-            gz = (z0 + z1 + z2) / 3.0
-            ux, uy, uz = x1 - gx, y1 - gy, z1 - gz
-            wx, wy, wz = x2 - gx, y2 - gy, z2 - gz
+            tol = _EPS_DEG * np.sqrt(lmax2)          # ε_deg ℓ
+            # Relative to v0: g = c − v0 = (e1 + e2)/3, u = v1 − c, w = v2 − c.
+            gx, gy, gz = (e1x + e2x) / 3.0, (e1y + e2y) / 3.0, (e1z + e2z) / 3.0
+            ux, uy, uz = e1x - gx, e1y - gy, e1z - gz
+            wx, wy, wz = e2x - gx, e2y - gy, e2z - gz
             lu = np.sqrt(ux * ux + uy * uy + uz * uz)
-            lw = np.sqrt(wx * wx + wy * wy + wz * wz)
-            if lu > 0.0:
-                p1x, p1y, p1z = ux / lu, uy / lu, uz / lu
-            elif lw > 0.0:
-                p1x, p1y, p1z = wx / lw, wy / lw, wz / lw
-            else:
-                p1x, p1y, p1z = 1.0, 0.0, 0.0
             if a > _EPS_DEG * lmax2:
+                # regular (then |u| > ε_deg ℓ / 2 > 0): n = cross/a, b1 = u/|u|, b2 = n × b1
                 ra = 1.0 / a
                 nx, ny, nz = cx * ra, cy * ra, cz * ra
+                p1x, p1y, p1z = ux / lu, uy / lu, uz / lu
+                p2x = ny * p1z - nz * p1y
+                p2y = nz * p1x - nx * p1z
+                p2z = nx * p1y - ny * p1x
+            elif lu > tol:
+                # degenerate: b1 = u/|u|, b2 = unit(w − (w·b1) b1) or perp(b1), n = b1 × b2
+                p1x, p1y, p1z = ux / lu, uy / lu, uz / lu
+                wb = wx * p1x + wy * p1y + wz * p1z
+                rx, ry, rz = wx - wb * p1x, wy - wb * p1y, wz - wb * p1z
+                lr = np.sqrt(rx * rx + ry * ry + rz * rz)
+                if lr > tol:
+                    p2x, p2y, p2z = rx / lr, ry / lr, rz / lr
+                else:
+                    p2x, p2y, p2z = _perp(p1x, p1y, p1z)
+                nx = p1y * p2z - p1z * p2y
+                ny = p1z * p2x - p1x * p2z
+                nz = p1x * p2y - p1y * p2x
+            elif lmax2 > 0.0:
+                # degenerate with v1 at the centroid: b2 = w/|w|, b1 = perp(b2), n = b1 × b2
+                lw = np.sqrt(wx * wx + wy * wy + wz * wz)
+                p2x, p2y, p2z = wx / lw, wy / lw, wz / lw
+                p1x, p1y, p1z = _perp(p2x, p2y, p2z)
+                nx = p1y * p2z - p1z * p2y
+                ny = p1z * p2x - p1x * p2z
+                nz = p1x * p2y - p1y * p2x
             else:
-                nx, ny, nz = _perp(p1x, p1y, p1z)
-            p2x = ny * p1z - nz * p1y
-            p2y = nz * p1x - nx * p1z
-            p2z = nx * p1y - ny * p1x
+                nx, ny, nz = 0.0, 0.0, 1.0
+                p1x, p1y, p1z = 1.0, 0.0, 0.0
+                p2x, p2y, p2z = 0.0, 1.0, 0.0
             s1 = (lu + _GEPS) / 2.0
             s2 = (wx * p2x + wy * p2y + wz * p2z) / 2.0
             row = table[f]
@@ -587,11 +617,14 @@ class FastRemapper:
             self._consts = np.ascontiguousarray(np.concatenate(
                 [anchors.barycentrics, anchors.rho[:, None]], axis=1), dtype=np.float32)
             return
+        # Rest quantities in float64 from the stored float32 rest vertices (spec §Precision):
+        # C_r⁻¹ (i00, i01, i11), √a_r (1 on faces degenerate at rest) and the regular flag.
         rest = prepare_rest(mesh.triangles())
         self._rest_table = np.ascontiguousarray(np.concatenate(
             [rest.inverse_shape[:, 0, 0:1], rest.inverse_shape[:, 0, 1:2],
-             rest.inverse_shape[:, 1, 1:2], rest.area2[:, None],
-             rest.regular[:, None].astype(np.float64)], axis=1))
+             rest.inverse_shape[:, 1, 1:2],
+             np.sqrt(np.where(rest.regular, rest.area2, 1.0))[:, None],
+             rest.regular[:, None].astype(np.float64)], axis=1), dtype=np.float64)
         q_l = quat.normalize(anchors.local_rotation)
         s_l = anchors.local_scale.astype(np.float64)
         lmat = quat.to_matrix(q_l) * s_l[:, None, :]            # L = R_l S_l
@@ -685,15 +718,23 @@ def float32_error_bounds(anchoring: Anchoring, vertices: np.ndarray | None = Non
     """Per-splat bounds on |μ_fast − μ_ref| and ‖Σ_fast − Σ_ref‖_F (float32 fast path against
     the float64 reference), as (N,) float64 arrays ``(mean_bound, cov_bound)``.
 
-    * mean: ``16 u (|v0| + |b1| |e1| + |b2| |e2| + |d| k)``;
-    * ``local`` covariance: ``64 u ‖A‖_F² Σ s_l²`` with A = R_c G (affine) or k R_c (rigid);
+    * mean: ``16 u (|v0| + |b1| |e1| + |b2| |e2| + |d| k)``, plus, on faces regular at rest,
+      the float32 error of the normal term d·m: ``|d| min(8 u P / √(a_c a_r), 6 √(u P / a_r))``
+      with P = |e1| |e2| of the current triangle (k = 1 and no such term on faces degenerate
+      at rest, where m = n_c);
+    * ``local`` covariance: ``64 u ‖A‖_F² Σ s_l²`` with A = [E_c C_r⁻¹ | m] (affine), k R_c
+      (rigid) or R_c (faces degenerate at rest);
     * ``games`` covariance: ``64 u Σ_j scale_j²``.
 
-    u = 2⁻²⁴. Both implementations classify triangles as regular or degenerate in float64; a
-    triangle within rounding of the threshold ``a = ε_deg ℓ²`` may be classified differently
-    (the frames then differ by O(√ε_deg)), which these bounds do not cover.
+    u = 2⁻²⁴. Both implementations evaluate the branch tests of the current frames in float64;
+    a triangle within rounding of a branch point may take different branches. Only frames with
+    a jump there are affected: the current frame R_c at ``a = ε_deg ℓ²`` (the rigid law, and
+    faces degenerate at rest) and the games frame at ``|u| = ε_deg ℓ`` or ``|r| = ε_deg ℓ``;
+    these bounds do not cover such triangles. The affine law and every mean on faces regular
+    at rest have no branch on the current triangle.
     """
     from .frames import games_frames, local_frames
+    from .remap import face_matrices
 
     mesh = anchoring.mesh
     v = mesh.vertices if vertices is None else np.asarray(vertices)
@@ -701,26 +742,27 @@ def float32_error_bounds(anchoring: Anchoring, vertices: np.ndarray | None = Non
     anchors = anchoring.anchors
     face = anchors.face_index.astype(np.intp)
     b = np.abs(anchors.barycentrics.astype(np.float64))
-    e1 = np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)[face]
-    e2 = np.linalg.norm(tri[:, 2] - tri[:, 0], axis=1)[face]
+    len1 = np.linalg.norm(tri[:, 1] - tri[:, 0], axis=1)
+    len2 = np.linalg.norm(tri[:, 2] - tri[:, 0], axis=1)
     v0 = np.linalg.norm(tri[face, 0], axis=1)
+    base_mean = v0 + b[:, 0] * len1[face] + b[:, 1] * len2[face]
     u = F32_UNIT_ROUNDOFF
     if isinstance(anchors, GamesAnchors):
         _, base, _ = games_frames(tri)
         scales = np.maximum(anchors.rho.astype(np.float64)[:, None] * base[face], 0.0) + GAMES_EPS
-        mean_bound = MEAN_BOUND_FACTOR * u * (v0 + b[:, 0] * e1 + b[:, 1] * e2)
-        return mean_bound, COV_BOUND_FACTOR * u * np.sum(scales * scales, axis=1)
+        return MEAN_BOUND_FACTOR * u * base_mean, COV_BOUND_FACTOR * u * np.sum(scales * scales, axis=1)
     rest = prepare_rest(mesh.triangles())
     cur = local_frames(tri)
-    safe = np.where(rest.regular, rest.area2, 1.0)
-    k = np.where(rest.regular, np.sqrt(cur.area2 / safe), 1.0)
-    if anchors.deformation == "rigid":
-        a2 = 3.0 * k * k
-    else:
-        g = cur.shape @ rest.inverse_shape
-        a2 = np.sum(g * g, axis=(1, 2)) + k * k
+    k, _, a = face_matrices(rest, cur, tri, anchors.deformation)
+    a2 = np.sum(a * a, axis=(1, 2))
+    # float32 error of d·m on faces regular at rest, per unit |d|
+    p = len1 * len2
+    a_r = np.where(rest.regular, rest.area2, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        normal = np.fmin(8.0 * u * p / np.sqrt(cur.area2 * a_r), 6.0 * np.sqrt(u * p / a_r))
+    normal = np.where(rest.regular, normal, 0.0)
     d = np.abs(anchors.normal_offset.astype(np.float64))
-    mean_bound = MEAN_BOUND_FACTOR * u * (v0 + b[:, 0] * e1 + b[:, 1] * e2 + d * k[face])
+    mean_bound = MEAN_BOUND_FACTOR * u * (base_mean + d * k[face]) + d * normal[face]
     s2 = np.sum(anchors.local_scale.astype(np.float64) ** 2, axis=1)
     return mean_bound, COV_BOUND_FACTOR * u * a2[face] * s2
 

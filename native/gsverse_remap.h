@@ -1,10 +1,13 @@
 /*
- * gsverse_remap.h -- per-frame remap of GSVERSE_gaussian_splatting_mesh_anchor splats.
+ * gsverse_remap.h -- per-frame remap of GSVERSE_gaussian_splatting_mesh_anchor splats
+ * (extension version 1.1).
  *
  * Portable C99, header-only, no dependencies: it includes only the standard headers
  * <math.h>, <stddef.h> and <stdint.h> (the last two are compiler-provided type headers),
  * allocates nothing and keeps no global state. It compiles as C99 and as C++.
- * Normative text: spec/README.md of gsverse-format (section numbers below refer to it).
+ * Normative text: spec/README.md of gsverse-format, version 1.1 (the section names below refer
+ * to it: Triangle frames, Remap: the local profile, Remap: the games profile, Outputs,
+ * precision and epsilons).
  *
  * USAGE
  *   In exactly one C or C++ file:
@@ -13,10 +16,15 @@
  *   Everywhere else include it without the define (declarations only). Define
  *   GSV_REMAP_STATIC as well to make every function static (one private copy per file).
  *
- *   Precision: internal arithmetic uses gsv_real, double by default (the spec's reference
- *   precision). Compile with -DGSV_REAL=float for a float32 build: the code subtracts the
- *   triangle's first corner before anything else (edges, centroid offsets) and adds it back
- *   last, so large coordinates keep their accuracy; it passes the conformance suite.
+ *   Precision: the per-frame arithmetic (current faces, splats) uses gsv_real, double by
+ *   default (the spec's reference precision). Compile with -DGSV_REAL=float for a float32
+ *   build: the code subtracts the triangle's first corner before anything else (edges,
+ *   centroid offsets) and adds it back last, so large coordinates keep their accuracy; it
+ *   passes the conformance suite. The rest quantities of the local profile (classification,
+ *   C_r^-1, a_r, 1/sqrt(a_r)) are ALWAYS computed in double precision by gsv_prepare_rest, in
+ *   every build, from the float inputs, and only then rounded to gsv_real for storage, as
+ *   spec v1.1 (Outputs, precision and epsilons) requires: float32 rest quantities of a rest
+ *   sliver are amplified by a later opening of the triangle.
  *   Inputs and outputs are float, the types of the file and of GPU buffers.
  *
  *   Arrays are tightly packed: vertices float[3V], indices uint32_t[3F] (NULL when the anchor
@@ -27,14 +35,21 @@
  *
  *   local profile (once per asset, then every frame):
  *       gsv_rest_face *rest = ...F entries...;   gsv_local_face *cur = ...F entries...;
- *       gsv_prepare_rest(rest_vertices, indices, F, rest);
+ *       gsv_prepare_rest(rest_vertices, indices, F, rest);            double precision
  *       each frame:
  *           gsv_local_faces(vertices, indices, F, rest, cur);              per face
  *           gsv_local_splats(cur, N, face, bary, offset, rotation, scale,  per splat
  *                            GSV_AFFINE or GSV_RIGID, means, cov6, NULL, NULL);
+ *     Faces regular at rest: k = sqrt(a_c / a_r), scaled normal m = (e1 x e2) / (sqrt(a_c)
+ *     sqrt(a_r)) (0 when a_c = 0), mean v0 + b1 e1 + b2 e2 + d m, affine A = [E_c C_r^-1 | m],
+ *     rigid A = k R_c. Faces degenerate at rest: k = 1, m = n_c, A = R_c for both laws.
+ *     Sigma = A R_l S_l^2 R_l^T A^T.
  *   games profile (every frame):
  *           gsv_games_faces(vertices, indices, F, gcur);
  *           gsv_games_splats(gcur, N, face, bary, rho, means, cov6, rot, scl);
+ *     Everything relative to v0: g = (e1 + e2)/3, u = e1 - g, w = e2 - g; the frame rules of
+ *     the spec (relative tests against eps_deg * l on degenerate triangles); mean
+ *     v0 + a1 e1 + a2 e2.
  *
  *   Rotation/scale outputs (optional, pass NULL to skip): rigid and games produce them
  *   directly; for the affine law they come from an eigen-decomposition of the covariance
@@ -43,10 +58,13 @@
  *
  *   Reading anchors: gsv_read_floats()/gsv_read_uints() read glTF accessor bytes of any
  *   component type (little-endian, with byteStride) and dequantize normalized integers;
- *   gsv_normalize_quaternions() renormalizes dequantized quaternions;
- *   gsv_anchor_accessor_allowed() says whether the spec allows an accessor layout, and
- *   gsv_check_face_indices() whether all face indices are in range and gsv_all_finite()
- *   whether float data hold no NaN or infinity: refuse the asset otherwise.
+ *   gsv_normalize_quaternions() renormalizes quaternions: call it on localRotation of EVERY
+ *   component type (FLOAT included) and on the rest-pose ROTATION. Before remapping, refuse the
+ *   asset when gsv_anchor_accessor_allowed() rejects an accessor layout,
+ *   gsv_check_face_indices() finds a face index out of range, gsv_all_finite() finds NaN or
+ *   infinity (anchor mesh, anchors, rest POSITION/ROTATION/SCALE),
+ *   gsv_check_quaternions_nonzero() finds a zero localRotation (after dequantization, before
+ *   normalization) or gsv_check_scales_nonnegative() a negative localScale component.
  */
 #ifndef GSVERSE_REMAP_H
 #define GSVERSE_REMAP_H
@@ -90,8 +108,8 @@ enum {
 #define GSV_GAMES_EPS 1e-8      /* GaMeS absolute epsilon, scene units */
 
 /* Local frame of one triangle (spec Triangle frames). r is row-major 3x3 whose columns are
-   t, b, n; c is the 2x2 edge matrix C row-major (c[0] c[1] / c[2] c[3]); area2 = a (0 for
-   degenerate triangles); regular = 1 for regular triangles. */
+   t, b, n; c is the 2x2 edge matrix C row-major (c[0] c[1] / c[2] c[3]); area2 = a = |e1 x e2|,
+   the true value for degenerate triangles too; regular = 1 for regular triangles. */
 typedef struct gsv_frame {
     gsv_real r[9];
     gsv_real c[4];
@@ -99,19 +117,25 @@ typedef struct gsv_frame {
     int regular;
 } gsv_frame;
 
-/* Rest data of one face, local profile: C_r^-1 (row-major 2x2) and the rest doubled area;
-   faces degenerate at rest get C_r^-1 = identity and k = 1 (spec Faces degenerate at rest). */
+/* Rest data of one face, local profile (computed in double precision by gsv_prepare_rest,
+   then stored as gsv_real): C_r^-1 (row-major 2x2, inv[2] = 0), the rest doubled area a_r and
+   1/sqrt(a_r). Faces degenerate at rest (regular = 0) use G := I and k := 1 (spec Faces
+   degenerate at rest); their inv is the identity and inv_sqrt_area2 is 1, both unused. */
 typedef struct gsv_rest_face {
     gsv_real inv[4];
     gsv_real area2;
+    gsv_real inv_sqrt_area2;
     int regular;
 } gsv_rest_face;
 
 /* Current state of one face, local profile: first corner o, edges e1 e2 (relative to o),
-   a_aff = R_c G (row-major 3x3, the affine world map of the frame coordinates),
-   r = R_c, k = size factor. */
+   the scaled normal m = (e1 x e2) / (sqrt(a_c) sqrt(a_r)) (0 when a_c = 0; n_c on faces
+   degenerate at rest), a_aff = the affine law's A = [E_c C_r^-1 | m] (row-major 3x3; R_c on
+   faces degenerate at rest), r = R_c (the current frame), k = size factor sqrt(a_c / a_r)
+   (1 on faces degenerate at rest). */
 typedef struct gsv_local_face {
     gsv_real o[3], e1[3], e2[3];
+    gsv_real m[3];
     gsv_real a_aff[9];
     gsv_real r[9];
     gsv_real k;
@@ -158,6 +182,8 @@ GSV_API int gsv_anchor_accessor_allowed(int property, int ncomp, int component_t
                                         int normalized);
 GSV_API int gsv_check_face_indices(const uint32_t *face, size_t n, size_t face_count);
 GSV_API int gsv_all_finite(const float *values, size_t count);
+GSV_API int gsv_check_quaternions_nonzero(const float *q, size_t count);
+GSV_API int gsv_check_scales_nonnegative(const float *values, size_t count);
 
 #ifdef __cplusplus
 }
@@ -223,43 +249,47 @@ static void gsv__edges(const float *v0, const float *v1, const float *v2, gsv_re
     }
 }
 
-/* The local frame from edges (spec Triangle frames). */
-static void gsv__frame(const gsv_real e1[3], const gsv_real e2[3], gsv_frame *f) {
-    gsv_real e3[3], cr[3], t[3], b[3], n[3];
-    gsv_real l1, l2, l3, longest, a;
+/* The local frame from edges (spec Triangle frames); also returns cross = e1 x e2. */
+static void gsv__frame(const gsv_real e1[3], const gsv_real e2[3], gsv_frame *f,
+                       gsv_real cross[3]) {
+    gsv_real e3[3], t[3], b[3], n[3];
+    gsv_real s1, s2, s3, longest2, a;
     int i;
     for (i = 0; i < 3; ++i) e3[i] = e2[i] - e1[i];
-    gsv__cross(e1, e2, cr);
-    a = gsv__norm(cr);
-    l1 = gsv__norm(e1); l2 = gsv__norm(e2); l3 = gsv__norm(e3);
-    longest = l1 > l2 ? l1 : l2;
-    if (l3 > longest) longest = l3;
+    gsv__cross(e1, e2, cross);
+    a = gsv__norm(cross);
+    /* squared lengths: the longest edge and its ties are decided on |e|^2 */
+    s1 = gsv__dot(e1, e1); s2 = gsv__dot(e2, e2); s3 = gsv__dot(e3, e3);
+    longest2 = s1 > s2 ? s1 : s2;
+    if (s3 > longest2) longest2 = s3;
     f->c[0] = f->c[1] = f->c[2] = f->c[3] = 0;
-    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest * longest) {
+    f->area2 = a;                               /* the true a, degenerate triangles too */
+    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest2) {
+        gsv_real l1 = GSV_SQRT(s1);
         gsv__scale(e1, (gsv_real)1 / l1, t);
-        gsv__scale(cr, (gsv_real)1 / a, n);
+        gsv__scale(cross, (gsv_real)1 / a, n);
         gsv__cross(n, t, b);
         f->c[0] = l1;
         f->c[1] = gsv__dot(e2, t);
         f->c[3] = a / l1;
-        f->area2 = a;
         f->regular = 1;
-    } else if (longest > 0) {
-        /* a segment: t along the longest of (e1, e2, e3), the first on ties */
-        const gsv_real *d = (l1 >= l2 && l1 >= l3) ? e1 : (l2 >= l3 ? e2 : e3);
-        gsv_real ld = (d == e1) ? l1 : (d == e2 ? l2 : l3);
-        gsv__scale(d, (gsv_real)1 / ld, t);
+    } else if (longest2 > 0) {
+        /* a segment: t along the longest of (e1, e2, e3) by squared length, the first of
+           them on exact ties */
+        const gsv_real *d = e1;
+        gsv_real best = s1;
+        if (s2 > best) { d = e2; best = s2; }
+        if (s3 > best) { d = e3; best = s3; }
+        gsv__scale(d, (gsv_real)1 / GSV_SQRT(best), t);
         gsv__perp(t, n);
         gsv__cross(n, t, b);
         f->c[0] = gsv__dot(e1, t);
         f->c[1] = gsv__dot(e2, t);
-        f->area2 = 0;
         f->regular = 0;
     } else {
         t[0] = 1; t[1] = 0; t[2] = 0;
         b[0] = 0; b[1] = 1; b[2] = 0;
         n[0] = 0; n[1] = 0; n[2] = 1;
-        f->area2 = 0;
         f->regular = 0;
     }
     gsv__columns(t, b, n, f->r);
@@ -267,37 +297,58 @@ static void gsv__frame(const gsv_real e1[3], const gsv_real e2[3], gsv_frame *f)
 
 GSV_API void gsv_local_frame(const float v0[3], const float v1[3], const float v2[3],
                              gsv_frame *out) {
-    gsv_real o[3], e1[3], e2[3];
+    gsv_real o[3], e1[3], e2[3], cross[3];
     gsv__edges(v0, v1, v2, o, e1, e2);
-    gsv__frame(e1, e2, out);
+    gsv__frame(e1, e2, out, cross);
 }
 
+/* The games frame and base scales (spec Remap: the games profile). */
 static void gsv__games(const gsv_real e1[3], const gsv_real e2[3], gsv_real r[9],
                        gsv_real base[3]) {
-    /* everything relative to v0: c - v0 = (e1 + e2) / 3, v1 - c = e1 - (c - v0),
-       w = v2 - c = e2 - (c - v0) */
-    gsv_real co[3], u1[3], w[3], b1[3], n[3], b2[3], cr[3], e3[3];
-    gsv_real lu, lw, a, l1, l2, l3, longest;
+    /* everything relative to v0: g = c - v0 = (e1 + e2) / 3, u = v1 - c = e1 - g,
+       w = v2 - c = e2 - g */
+    gsv_real g[3], u[3], w[3], e3[3], cr[3], b1[3], b2[3], n[3];
+    gsv_real lu, a, s1, s2, s3, longest2, ell, tol;
     int i;
     for (i = 0; i < 3; ++i) {
-        co[i] = (e1[i] + e2[i]) / 3;
-        u1[i] = e1[i] - co[i];
-        w[i] = e2[i] - co[i];
+        g[i] = (e1[i] + e2[i]) / 3;
+        u[i] = e1[i] - g[i];
+        w[i] = e2[i] - g[i];
         e3[i] = e2[i] - e1[i];
     }
     gsv__cross(e1, e2, cr);
     a = gsv__norm(cr);
-    l1 = gsv__norm(e1); l2 = gsv__norm(e2); l3 = gsv__norm(e3);
-    longest = l1 > l2 ? l1 : l2;
-    if (l3 > longest) longest = l3;
-    lu = gsv__norm(u1);
-    lw = gsv__norm(w);
-    if (lu > 0) gsv__scale(u1, (gsv_real)1 / lu, b1);
-    else if (lw > 0) gsv__scale(w, (gsv_real)1 / lw, b1);
-    else { b1[0] = 1; b1[1] = 0; b1[2] = 0; }
-    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest * longest) gsv__scale(cr, (gsv_real)1 / a, n);
-    else gsv__perp(b1, n);
-    gsv__cross(n, b1, b2);
+    s1 = gsv__dot(e1, e1); s2 = gsv__dot(e2, e2); s3 = gsv__dot(e3, e3);
+    longest2 = s1 > s2 ? s1 : s2;
+    if (s3 > longest2) longest2 = s3;
+    ell = GSV_SQRT(longest2);
+    tol = (gsv_real)GSV_EPS_DEGENERATE * ell;  /* the relative tests of degenerate triangles */
+    lu = gsv__norm(u);
+    if (a > (gsv_real)GSV_EPS_DEGENERATE * longest2) {
+        /* regular: |u| > eps_deg l / 2 > 0 */
+        gsv__scale(u, (gsv_real)1 / lu, b1);
+        gsv__scale(cr, (gsv_real)1 / a, n);
+        gsv__cross(n, b1, b2);
+    } else if (lu > tol) {
+        /* degenerate: b2 from w by Gram-Schmidt against b1 */
+        gsv_real rr[3], wb, lr;
+        gsv__scale(u, (gsv_real)1 / lu, b1);
+        wb = gsv__dot(w, b1);
+        for (i = 0; i < 3; ++i) rr[i] = w[i] - wb * b1[i];
+        lr = gsv__norm(rr);
+        if (lr > tol) gsv__scale(rr, (gsv_real)1 / lr, b2);
+        else gsv__perp(b1, b2);
+        gsv__cross(b1, b2, n);
+    } else if (longest2 > 0) {
+        /* degenerate, v1 at the centroid (e.g. the midpoint of v0 v2): the splat lies along w */
+        gsv__scale(w, (gsv_real)1 / gsv__norm(w), b2);
+        gsv__perp(b2, b1);
+        gsv__cross(b1, b2, n);
+    } else {
+        n[0] = 0; n[1] = 0; n[2] = 1;
+        b1[0] = 1; b1[1] = 0; b1[2] = 0;
+        b2[0] = 0; b2[1] = 1; b2[2] = 0;
+    }
     base[0] = (gsv_real)GSV_GAMES_EPS;
     base[1] = (lu + (gsv_real)GSV_GAMES_EPS) / 2;
     base[2] = gsv__dot(w, b2) / 2;
@@ -318,25 +369,60 @@ static void gsv__corners(const float *vertices, const uint32_t *indices, size_t 
     *v0 = vertices + 3 * i0; *v1 = vertices + 3 * i1; *v2 = vertices + 3 * i2;
 }
 
+/* Rest quantities of one triangle in double precision, whatever gsv_real is (spec Outputs,
+   precision and epsilons: rest quantities in binary64 from the stored float32 values). The
+   classification and C_r follow Triangle frames exactly: t = e1 / |e1|, C_r = [[p, q], [0, h]]
+   with p = |e1|, q = e2 . t, h = a / |e1|. Returns 1 for a triangle regular at rest. */
+static int gsv__rest_double(const float *v0, const float *v1, const float *v2, double inv[4],
+                            double *area2, double *inv_sqrt_area2) {
+    double e1[3], e2[3], e3[3], cr[3], t[3];
+    double s1, s2, s3, longest2, a, p, q, h;
+    int i;
+    for (i = 0; i < 3; ++i) {
+        e1[i] = (double)v1[i] - (double)v0[i];
+        e2[i] = (double)v2[i] - (double)v0[i];
+        e3[i] = (double)v2[i] - (double)v1[i];
+    }
+    cr[0] = e1[1] * e2[2] - e1[2] * e2[1];
+    cr[1] = e1[2] * e2[0] - e1[0] * e2[2];
+    cr[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    a = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+    s1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
+    s2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+    s3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
+    longest2 = s1 > s2 ? s1 : s2;
+    if (s3 > longest2) longest2 = s3;
+    *area2 = a;
+    if (!(a > GSV_EPS_DEGENERATE * longest2)) {
+        inv[0] = 1; inv[1] = 0; inv[2] = 0; inv[3] = 1;
+        *inv_sqrt_area2 = 1;
+        return 0;
+    }
+    p = sqrt(s1);
+    for (i = 0; i < 3; ++i) t[i] = e1[i] / p;
+    q = e2[0] * t[0] + e2[1] * t[1] + e2[2] * t[2];
+    h = a / p;
+    /* C_r^-1 = [[1/p, -q/(p h)], [0, 1/h]] */
+    inv[0] = 1 / p; inv[1] = -q / (p * h);
+    inv[2] = 0; inv[3] = 1 / h;
+    *inv_sqrt_area2 = 1 / sqrt(a);
+    return 1;
+}
+
 GSV_API void gsv_prepare_rest(const float *vertices, const uint32_t *indices, size_t face_count,
                               gsv_rest_face *rest) {
     size_t f;
     for (f = 0; f < face_count; ++f) {
         const float *v0, *v1, *v2;
-        gsv_frame fr;
+        double inv[4], area2, inv_sqrt;
         gsv_rest_face *out = rest + f;
+        int i;
         gsv__corners(vertices, indices, f, &v0, &v1, &v2);
-        gsv_local_frame(v0, v1, v2, &fr);
-        out->regular = fr.regular;
-        out->area2 = fr.area2;
-        if (fr.regular) {
-            /* C_r = [[p, q], [0, h]] -> C_r^-1 = [[1/p, -q/(p h)], [0, 1/h]] */
-            gsv_real p = fr.c[0], q = fr.c[1], h = fr.c[3];
-            out->inv[0] = 1 / p; out->inv[1] = -q / (p * h);
-            out->inv[2] = 0; out->inv[3] = 1 / h;
-        } else {
-            out->inv[0] = 1; out->inv[1] = 0; out->inv[2] = 0; out->inv[3] = 1;
-        }
+        out->regular = gsv__rest_double(v0, v1, v2, inv, &area2, &inv_sqrt);
+        /* computed in double, stored as gsv_real */
+        for (i = 0; i < 4; ++i) out->inv[i] = (gsv_real)inv[i];
+        out->area2 = (gsv_real)area2;
+        out->inv_sqrt_area2 = (gsv_real)inv_sqrt;
     }
 }
 
@@ -345,26 +431,33 @@ GSV_API void gsv_local_faces(const float *vertices, const uint32_t *indices, siz
     size_t f;
     for (f = 0; f < face_count; ++f) {
         const float *v0, *v1, *v2;
+        const gsv_rest_face *rf = rest + f;
         gsv_frame fr;
         gsv_local_face *out = cur + f;
-        gsv_real g[4];
+        gsv_real cross[3];
         int i, j;
         gsv__corners(vertices, indices, f, &v0, &v1, &v2);
         gsv__edges(v0, v1, v2, out->o, out->e1, out->e2);
-        gsv__frame(out->e1, out->e2, &fr);
-        /* size factor k = sqrt(a_c / a_r); 1 for faces degenerate at rest */
-        out->k = rest[f].regular ? GSV_SQRT(fr.area2 / rest[f].area2) : (gsv_real)1;
-        /* G = blockdiag(C_c C_r^-1, k); a_aff = R_c G */
-        g[0] = fr.c[0] * rest[f].inv[0] + fr.c[1] * rest[f].inv[2];
-        g[1] = fr.c[0] * rest[f].inv[1] + fr.c[1] * rest[f].inv[3];
-        g[2] = fr.c[2] * rest[f].inv[0] + fr.c[3] * rest[f].inv[2];
-        g[3] = fr.c[2] * rest[f].inv[1] + fr.c[3] * rest[f].inv[3];
-        for (i = 0; i < 3; ++i) {
-            for (j = 0; j < 2; ++j)
-                out->a_aff[3 * i + j] = fr.r[3 * i] * g[j] + fr.r[3 * i + 1] * g[2 + j];
-            out->a_aff[3 * i + 2] = fr.r[3 * i + 2] * out->k;
-        }
+        gsv__frame(out->e1, out->e2, &fr, cross);   /* R_c, a_c = |e1 x e2| */
         for (i = 0; i < 9; ++i) out->r[i] = fr.r[i];
+        if (rf->regular) {
+            /* k = sqrt(a_c / a_r); m = (e1 x e2) / (sqrt(a_c) sqrt(a_r)), 0 when a_c = 0 */
+            gsv_real root_c = GSV_SQRT(fr.area2);
+            out->k = root_c * rf->inv_sqrt_area2;
+            for (i = 0; i < 3; ++i)                 /* |e1 x e2| / sqrt(a_c) = sqrt(a_c) */
+                out->m[i] = root_c > 0 ? cross[i] / root_c * rf->inv_sqrt_area2 : (gsv_real)0;
+            /* affine A = [E_c C_r^-1 | m] (C_r^-1 upper triangular) */
+            for (i = 0; i < 3; ++i) {
+                for (j = 0; j < 2; ++j)
+                    out->a_aff[3 * i + j] = out->e1[i] * rf->inv[j] + out->e2[i] * rf->inv[2 + j];
+                out->a_aff[3 * i + 2] = out->m[i];
+            }
+        } else {
+            /* degenerate at rest: G := I, k := 1, m := n_c, A := R_c (both laws) */
+            out->k = 1;
+            for (i = 0; i < 3; ++i) out->m[i] = fr.r[3 * i + 2];
+            for (i = 0; i < 9; ++i) out->a_aff[i] = fr.r[i];
+        }
     }
 }
 
@@ -485,14 +578,14 @@ GSV_API void gsv_local_splats(const gsv_local_face *cur, size_t n, const uint32_
     size_t i;
     for (i = 0; i < n; ++i) {
         const gsv_local_face *f = cur + face[i];
-        gsv_real b1 = bary[2 * i], b2 = bary[2 * i + 1], dk = (gsv_real)offset[i] * f->k;
+        gsv_real b1 = bary[2 * i], b2 = bary[2 * i + 1], d = offset[i];
         gsv_real q[4], rl[9], l[9], m[9];
         const gsv_real *a;
         gsv_real ak[9];
         int r, c, j;
-        /* mean = v0 + b1 e1 + b2 e2 + d k n: the small part first, the corner last */
+        /* mean = v0 + b1 e1 + b2 e2 + d m: the small part first, the corner last */
         for (j = 0; j < 3; ++j) {
-            gsv_real rel = b1 * f->e1[j] + b2 * f->e2[j] + dk * f->r[3 * j + 2];
+            gsv_real rel = b1 * f->e1[j] + b2 * f->e2[j] + d * f->m[j];
             means[3 * i + j] = (float)(f->o[j] + rel);
         }
         for (j = 0; j < 4; ++j) q[j] = rotation[4 * i + j];
@@ -503,7 +596,7 @@ GSV_API void gsv_local_splats(const gsv_local_face *cur, size_t n, const uint32_
             for (j = 0; j < 9; ++j) ak[j] = f->k * f->r[j];
             a = ak;
         } else {
-            a = f->a_aff;                          /* A = R_c G */
+            a = f->a_aff;                          /* A = [E_c C_r^-1 | m] */
         }
         for (r = 0; r < 3; ++r)                    /* M = A L */
             for (c = 0; c < 3; ++c)
@@ -688,6 +781,27 @@ GSV_API int gsv_all_finite(const float *values, size_t count) {
         float v = values[i];
         if (v != v || v - v != 0.0f) return 0;   /* NaN, or infinity (inf - inf is NaN) */
     }
+    return 1;
+}
+
+/* 1 when no quaternion (count of them, 4 floats each) has zero length: a zero localRotation
+   makes the asset invalid (spec v1.1). Check after dequantization, before normalization. */
+GSV_API int gsv_check_quaternions_nonzero(const float *q, size_t count) {
+    size_t i;
+    for (i = 0; i < count; ++i) {
+        const float *p = q + 4 * i;
+        double n2 = (double)p[0] * p[0] + (double)p[1] * p[1] + (double)p[2] * p[2]
+                  + (double)p[3] * p[3];
+        if (n2 == 0.0) return 0;
+    }
+    return 1;
+}
+
+/* 1 when none of the count values is negative: a negative localScale component (after
+   dequantization) makes the asset invalid (spec v1.1). -0 counts as zero. */
+GSV_API int gsv_check_scales_nonnegative(const float *values, size_t count) {
+    size_t i;
+    for (i = 0; i < count; ++i) if (values[i] < 0.0f) return 0;
     return 1;
 }
 

@@ -101,6 +101,44 @@ def test_suite_covers_what_plugins_must_handle(suite, manifests):
     assert size < 6e6, size
 
 
+def test_suite_covers_valid_encodings(suite, manifests):
+    """The encodings a reader must accept besides the writer's own layout (cases_encodings)."""
+    from gsverse_format.conformance.glb import unpack_glb
+
+    tags = {t for m in manifests.values() for t in m["tags"]}
+    for needed in ("encoding:localScale=unsigned_byte", "encoding:localScale=unsigned_short",
+                   "encoding:localScale=unsigned_byte_normalized",
+                   "encoding:localScale=unsigned_short_normalized", "encoding:rest-quantized",
+                   "encoding:byte-stride", "encoding:non-indexed", "encoding:node-transforms"):
+        assert needed in tags, needed
+    for family in ("rest-quantized", "byte-stride", "non-indexed", "node-transforms"):
+        for law in ("local-affine", "local-rigid", "games"):
+            assert f"{law}-{family}" in manifests
+    for cid in _tagged(manifests, "encoding:non-indexed"):
+        anchor = manifests[cid]["anchor"]
+        assert not anchor["indexed"] and anchor["face_count"] * 3 == anchor["vertex_count"]
+    for cid in _tagged(manifests, "encoding:byte-stride"):
+        doc, _ = unpack_glb((suite / "cases" / cid / "asset.glb").read_bytes())
+        ext = [p for m in doc["meshes"] for p in m["primitives"] if p["mode"] == 0][0][
+            "extensions"]["KHR_gaussian_splatting"]["extensions"][
+            "GSVERSE_gaussian_splatting_mesh_anchor"]
+        views = {doc["accessors"][ext[k]]["bufferView"] for k in ("faceIndex", "barycentrics")}
+        assert len(views) == 1 and "byteStride" in doc["bufferViews"][views.pop()]
+        pos = doc["meshes"][ext["mesh"]]["primitives"][0]["attributes"]["POSITION"]
+        assert "byteStride" in doc["bufferViews"][doc["accessors"][pos]["bufferView"]]
+    for cid in _tagged(manifests, "encoding:node-transforms"):
+        doc, _ = unpack_glb((suite / "cases" / cid / "asset.glb").read_bytes())
+        moved = [n for n in doc["nodes"] if n.get("mesh") is not None
+                 and ({"matrix", "translation", "rotation", "scale"} & set(n))]
+        assert {n["mesh"] for n in moved} == {0, 1}, cid
+    invalid = _ids(manifests, lambda m: m["kind"] == "invalid")
+    for cid in ("invalid-local-rotation-zero", "invalid-local-scale-negative",
+                "invalid-non-finite-rest-position", "invalid-non-finite-rest-rotation",
+                "invalid-non-finite-rest-scale", "invalid-splat-primitive-not-points",
+                "invalid-anchor-mesh-multiple-instances"):
+        assert cid in invalid
+
+
 def _anchor_faces(suite: Path, manifest: dict) -> np.ndarray:
     return read_asset(str(suite / "cases" / manifest["id"] / "asset.glb")).primitives[0] \
         .anchoring.anchors.face_index
@@ -513,10 +551,13 @@ def test_broken_float16_accumulation_fails(suite, manifests, tmp_path):
     assert failed == remap_cases          # every remap case, and no invalid case
 
 
-def test_broken_dequantization_fails_exactly_the_quantized_barycentric_cases(suite, manifests,
-                                                                            tmp_path):
+def test_broken_dequantization_fails_exactly_the_quantized_barycentric_and_scale_cases(
+        suite, manifests, tmp_path):
     report = _run(suite, tmp_path / "r", lambda: RawReferencePlugin(_pow2_dequantize))
-    assert _failed(report) == _tagged(manifests, "quantized:barycentrics")
+    # normalized localScale is dequantized with the same wrong divisor (quaternions are
+    # renormalized, so a wrong divisor does not show there)
+    assert _failed(report) == (_tagged(manifests, "quantized:barycentrics")
+                               | _tagged(manifests, "encoding:localScale-normalized"))
 
 
 def test_broken_missing_quaternion_renormalization_fails_the_quantized_rotation_cases(
@@ -828,3 +869,15 @@ def test_scaled_cases_agree_after_scaling(suite, manifests):
                         2 * abs(1 / c - 1) * 3e-8 * np.sqrt(np.max(np.abs(c1))) * 4 + 1e-12
                 else:
                     assert np.max(rel) <= 1e-5   # float32 rounding of each scaled file
+
+
+def test_library_reader_refuses_every_invalid_case(suite, manifests):
+    """gsverse_format.read_gltf itself (not only the suite's harness) refuses every asset the
+    spec says readers MUST refuse, with a one-line FormatError."""
+    from gsverse_format.errors import FormatError
+    from gsverse_format.io.gltf import read_gltf
+
+    for cid in _tagged(manifests, "invalid"):
+        with pytest.raises(FormatError) as err:
+            read_gltf(suite / "cases" / cid / "asset.glb")
+        assert "\n" not in str(err.value), cid

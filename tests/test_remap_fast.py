@@ -1,8 +1,10 @@
 """The fast remap agrees with the float64 reference within the stated float32 bounds.
 
 Bounds (``gsverse_format.remap_fast.float32_error_bounds``, u = 2⁻²⁴):
-mean ``16 u (|v0| + |b1||e1| + |b2||e2| + |d| k)``; ``local`` covariance ``64 u ‖A‖_F² Σ s_l²``;
-``games`` covariance ``64 u Σ scale²`` (Frobenius norms, per splat).
+mean ``16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
+``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest;
+``local`` covariance ``64 u ‖A‖_F² Σ s_l²`` (A = [E_c C_r⁻¹ | m], k R_c, or R_c on faces
+degenerate at rest); ``games`` covariance ``64 u Σ scale²`` (Frobenius norms, per splat).
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import pytest
 from gsverse_format import remap_fast as rf
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import remap
+from gsverse_format.remap import prepare_rest, remap
 
 from helpers import bumpy_sphere, random_rotation, surface_splats
 
@@ -104,7 +106,7 @@ def test_fast_matches_reference_on_deformed_meshes(mesh, anchorings, kind):
 
 @needs_numba
 def test_degenerate_rest_faces_and_quantized_anchors():
-    # Face 1 is degenerate at rest (collinear corners): the spec's rule C_r⁻¹ = I, k = 1.
+    # Face 1 is degenerate at rest (collinear corners): the spec's rule k = 1, m = n_c, A = R_c.
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0], [3, 0, 0]], np.float32)
     mesh = TriangleMesh(v, np.array([[0, 1, 2], [1, 3, 4]]))
     rng = np.random.default_rng(3)
@@ -121,6 +123,58 @@ def test_degenerate_rest_faces_and_quantized_anchors():
         cur = v * [3.0, 0.5, 1.0] + [0.0, 0.0, 0.25]
         _check_against_reference(anchoring, cur, fast.remap(cur))
         _check_against_reference(anchoring, None, fast.remap())
+
+
+@needs_numba
+def test_rest_sliver_just_above_threshold_opened_to_a_regular_triangle():
+    """A rest sliver with a_r = 1.1e-6 ℓ² (just regular) opened to a regular triangle (area
+    ×1e5, k ≈ 316): the normal term d·m stays within 1e-4 |d| of the reference because the
+    rest quantities (C_r⁻¹, √a_r) are computed once in float64 from the stored float32 rest
+    vertices. Computed in float32, a_r would carry a relative error of order u ℓ²/a_r (several
+    per cent here), and the mean would be off by a sizeable fraction of k |d|."""
+    q, _ = np.linalg.qr(np.random.default_rng(21).normal(size=(3, 3)))
+    h = 1.1e-6                                   # ℓ = |e1| = 1, a = h
+    flat = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.4, h, 0.0]])
+    opened = flat.copy()
+    opened[2, 1] = h * 1e5
+    rest_v = (flat @ q.T + 0.5).astype(np.float32)
+    cur_v = (opened @ q.T + 0.5).astype(np.float32)
+    mesh = TriangleMesh(rest_v, np.array([[0, 1, 2]]))
+    rest = prepare_rest(mesh.triangles())
+    tri = mesh.triangles().astype(np.float64)
+    ell2 = max(float(np.sum((tri[0, i] - tri[0, j]) ** 2)) for i, j in ((1, 0), (2, 0), (2, 1)))
+    assert rest.regular[0] and 1e-6 < rest.area2[0] / ell2 < 1.2e-6       # just above threshold
+    a_c = np.linalg.norm(np.cross(*(cur_v[1:].astype(np.float64) - cur_v[0])))
+    assert 0.9e5 < a_c / rest.area2[0] < 1.1e5
+
+    rng = np.random.default_rng(22)
+    n = 400
+    d = rng.choice([-1.0, 1.0], n) * rng.uniform(0.5, 2.0, n)
+    for law in ("affine", "rigid"):
+        anchors = LocalAnchors(np.zeros(n, np.int64), rng.uniform(0, 1, (n, 2)), d,
+                               rng.normal(size=(n, 4)), rng.uniform(1e-3, 1e-2, (n, 3)), law)
+        anchoring = Anchoring(mesh, anchors)
+        fast = rf.FastRemapper(anchoring, backend="numba")
+        # The rest table is float64 and holds exactly the float64 reference's rest quantities.
+        table = fast._rest_table
+        assert table.dtype == np.float64
+        assert table[0, 3] == np.sqrt(rest.area2[0]) and table[0, 4] == 1.0
+        assert (table[0, 0], table[0, 1], table[0, 2]) == (
+            rest.inverse_shape[0, 0, 0], rest.inverse_shape[0, 0, 1], rest.inverse_shape[0, 1, 1])
+        out = fast.remap(cur_v)
+        ref = _check_against_reference(anchoring, cur_v, out)
+        err = np.linalg.norm(out.means.astype(np.float64) - ref.means, axis=1)
+        assert np.max(err / np.abs(d)) < 1e-4, (law, float(np.max(err / np.abs(d))))
+
+    # For contrast: the same rest area computed in float32 arithmetic.
+    e1 = rest_v[1] - rest_v[0]
+    e2 = rest_v[2] - rest_v[0]
+    cross32 = np.array([e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                        e1[0] * e2[1] - e1[1] * e2[0]], np.float32)
+    area32 = float(np.sqrt(np.sum(cross32 * cross32, dtype=np.float32)))
+    k = np.sqrt(a_c / rest.area2[0])
+    # |Δm| = k |1 − √(a_r / a_r32)|: far beyond 1e-4 per unit |d|
+    assert k * abs(1.0 - np.sqrt(rest.area2[0] / area32)) > 1e-2
 
 
 @needs_numba

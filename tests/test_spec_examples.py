@@ -49,3 +49,30 @@ def test_example_3_games():
     assert np.allclose(r.scales[0], [3e-8, 2.2360679975, 1.3416407965], rtol=1e-10, atol=1e-17)
     expected = [[0, 0.8944271910, 0.4472135955], [0, -0.4472135955, 0.8944271910], [1, 0, 0]]
     assert np.allclose(quat.to_matrix(r.rotations[0]), expected, atol=1e-10)
+
+
+@pytest.mark.parametrize("law", ["affine", "rigid"])
+def test_example_4_degenerate_at_rest(law):
+    """Spec v1.1: a face degenerate at rest follows its current frame unscaled (G := I)."""
+    mesh = TriangleMesh([[0, 0, 0], [2, 0, 0], [1, 0, 0]], [[0, 1, 2]])
+    anchors = LocalAnchors([0], [[0.25, 0.25]], [0.125], [[0, 0, 0, 1]], SCALE, law)
+    r = remap(Anchoring(mesh, anchors), np.array([[0, 0, 0], [0, 2, 0], [0, 1, 0]], float))
+    assert np.allclose(r.means[0], [0, 0.75, -0.125], atol=1e-12)
+    assert np.allclose(r.covariances[0], np.diag([0.140625, 0.015625, 0.00390625]), atol=1e-12)
+    assert np.allclose(r.scales[0], SCALE[0], atol=1e-12)
+    assert np.allclose(np.abs(r.rotations[0]), [0.7071067812, 0.7071067812, 0, 0], atol=1e-10)
+    rest = remap(Anchoring(mesh, anchors))          # the stored splat comes back at rest
+    assert np.allclose(rest.means[0], [0.75, 0, 0.125], atol=1e-12)
+    assert np.allclose(rest.covariances[0], np.diag([0.015625, 0.140625, 0.00390625]), atol=1e-12)
+
+
+def test_example_5_games_midpoint():
+    """Spec v1.1: v1 at the centroid of a flat triangle: the splat lies along w."""
+    mesh = TriangleMesh([[0, 0, 0], [1, 0, 0], [2, 0, 0]], [[0, 1, 2]])
+    r = remap(Anchoring(mesh, GamesAnchors([0], [[0.3, 0.5]], [2.0])))
+    assert np.allclose(r.means[0], [1.300000012, 0, 0], atol=1e-9)
+    assert np.allclose(r.scales[0], [3e-8, 2e-8, 1.00000001], rtol=1e-10, atol=1e-17)
+    expected = [[0, 0, 1], [1, 0, 0], [0, 1, 0]]
+    assert np.allclose(quat.to_matrix(r.rotations[0]), expected, atol=1e-12)
+    assert np.allclose(r.covariances[0], np.diag([1.00000002, 9e-16, 4e-16]), rtol=1e-9,
+                       atol=1e-20)

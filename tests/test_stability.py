@@ -14,12 +14,17 @@ fast path must give:
   the splats are sorted by face or not);
 * and the float32 result must lie within the stated bound of the float64 one
   (``gsverse_format.remap_fast.float32_error_bounds``):
-  ``|Δμ| <= 16 u (|v0| + |b1||e1| + |b2||e2| + |d| k)``,
-  ``‖ΔΣ‖_F <= 64 u ‖A‖_F² Σ s_l²`` (``local``; A = R_c G or k R_c) and
+  ``|Δμ| <= 16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
+  ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest,
+  ``‖ΔΣ‖_F <= 64 u ‖A‖_F² Σ s_l²`` (``local``; A = [E_c C_r⁻¹ | m], k R_c or R_c) and
   ``‖ΔΣ‖_F <= 64 u Σ scale²`` (``games``).
-  Splats on triangles within 1e-6 (relative) of the degeneracy threshold a = ε_deg ℓ² are
-  exempt from this comparison only: both sides classify in float64, but a one-rounding
-  difference may put such a triangle on different sides of the threshold.
+  Both sides take the branches of the current frames in float64, but a one-rounding difference
+  may put a triangle within 1e-6 (relative) of a branch point on different sides of it. Only
+  results that depend on a frame with a jump there are exempt from the comparison: the
+  covariance of the rigid law and both outputs on faces degenerate at rest (the current frame
+  R_c, branch point a = ε_deg ℓ²), and the games covariance (its frame, branch points
+  a = ε_deg ℓ², |u| = ε_deg ℓ, |r| = ε_deg ℓ). The affine law and every other mean have no
+  branch on the current triangle and are always compared.
 """
 from __future__ import annotations
 
@@ -33,15 +38,16 @@ from hypothesis import strategies as st
 from gsverse_format import remap_fast as rf
 from gsverse_format.frames import EPS_DEGENERATE
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import remap
+from gsverse_format.remap import prepare_rest, remap
 
 U = rf.F32_UNIT_ROUNDOFF
 SETTINGS = settings(max_examples=int(os.environ.get("GSVERSE_STABILITY_EXAMPLES", "60")),
                     deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
-# Height of a sliver over its longest edge; 1e-6 (the threshold itself) is left out on purpose.
-SLIVER_RATIOS = (1e-2, 1e-4, 1e-5, 3e-7, 1e-9, 1e-12)
+# Height of a sliver over its longest edge; 1e-6 (the threshold itself) is left out on purpose,
+# 1.1e-6 and 9e-7 lie just on either side of it.
+SLIVER_RATIOS = (1e-2, 1e-4, 1e-5, 1.1e-6, 9e-7, 3e-7, 1e-9, 1e-12)
 REST_KINDS = ("regular", "regular", "regular", "sliver", "segment", "point")
 CURRENT_KINDS = ("affine", "affine", "stretch", "compress", "inverted", "sliver", "segment",
                  "point", "rigid")
@@ -134,14 +140,46 @@ def scenes(draw, profile: str):
     return Anchoring(mesh, anchors), cur_v
 
 
-def _near_threshold(vertices: np.ndarray, mesh: TriangleMesh) -> np.ndarray:
+def _near(value: np.ndarray, threshold: np.ndarray) -> np.ndarray:
+    """Where ``value`` is within 1e-6 (relative) of a positive ``threshold``."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = value / threshold
+    return np.isfinite(r) & (np.abs(r - 1.0) < 1e-6)
+
+
+def _branch_points(vertices: np.ndarray, mesh: TriangleMesh, games: bool) -> np.ndarray:
+    """(F,) bool: current triangles near a branch point of their frame: a = ε_deg ℓ² (the
+    frame R_c), and for the games frame also |u| = ε_deg ℓ and |r| = ε_deg ℓ."""
     tri = mesh.triangles(vertices)
     e1, e2, e3 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]
     a = np.linalg.norm(np.cross(e1, e2), axis=1)
     ell2 = np.max(np.stack([np.sum(e * e, axis=1) for e in (e1, e2, e3)]), axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r = a / (EPS_DEGENERATE * ell2)
-    return np.isfinite(r) & (np.abs(r - 1.0) < 1e-6)
+    near = _near(a, EPS_DEGENERATE * ell2)
+    if games:
+        tol = EPS_DEGENERATE * np.sqrt(ell2)
+        g = (e1 + e2) / 3.0
+        u, w = e1 - g, e2 - g
+        len_u = np.linalg.norm(u, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            b1 = u / len_u[:, None]
+        r = w - np.sum(w * b1, axis=1)[:, None] * b1
+        near |= _near(len_u, tol) | _near(np.linalg.norm(r, axis=1), tol)
+    return near
+
+
+def _exempt(anchoring: Anchoring, vertices: np.ndarray):
+    """Per splat (mean_exempt, cov_exempt): results that depend on a frame whose branch may be
+    decided differently by one rounding (see the module docstring)."""
+    anchors = anchoring.anchors
+    face = anchors.face_index.astype(np.intp)
+    games = isinstance(anchors, GamesAnchors)
+    near = _branch_points(vertices, anchoring.mesh, games)[face]
+    if games:
+        return np.zeros_like(near), near
+    degenerate_at_rest = ~prepare_rest(anchoring.mesh.triangles()).regular[face]
+    mean_exempt = near & degenerate_at_rest
+    cov_exempt = near & (degenerate_at_rest | (anchors.deformation == "rigid"))
+    return mean_exempt, cov_exempt
 
 
 def _check_psd(cov: np.ndarray, rel_tol: float) -> None:
@@ -195,11 +233,13 @@ def _check(anchoring: Anchoring, vertices: np.ndarray) -> None:
     assert np.array_equal(by_face.cov6, out.cov6[order])
 
     mean_bound, cov_bound = rf.float32_error_bounds(anchoring, vertices)
-    check = ~_near_threshold(vertices, anchoring.mesh)[anchoring.anchors.face_index.astype(np.intp)]
+    mean_exempt, cov_exempt = _exempt(anchoring, vertices)
     mean_err = np.linalg.norm(out.means - ref.means, axis=1)
     cov_err = np.linalg.norm(cov - ref.covariances, axis=(1, 2))
-    assert np.all((mean_err <= mean_bound)[check]), float(np.max((mean_err / mean_bound)[check]))
-    assert np.all((cov_err <= cov_bound)[check]), float(np.max((cov_err / cov_bound)[check]))
+    ok = (mean_err <= mean_bound) | mean_exempt
+    assert np.all(ok), float(np.max((mean_err / mean_bound)[~ok]))
+    ok = (cov_err <= cov_bound) | cov_exempt
+    assert np.all(ok), float(np.max((cov_err / cov_bound)[~ok]))
 
 
 @SETTINGS
@@ -240,3 +280,36 @@ def test_rest_pose_of_huge_offset_mesh_is_reproduced_to_float32(profile):
     rel = np.linalg.norm(out.covariances() - ref.covariances, axis=(1, 2)) / \
         np.linalg.norm(ref.covariances, axis=(1, 2))
     assert np.max(rel) <= 1e-5
+
+
+@pytest.mark.skipif(not rf.numba_available(), reason="numba not installed")
+def test_no_exemption_needed_for_affine_and_means_at_the_threshold():
+    """Current triangles within a few roundings of a = ε_deg ℓ² (either side, as each
+    implementation decides it): the affine law's means and covariances and the rigid law's means
+    have no branch there and stay within the stated bounds without any exemption."""
+    rng = np.random.default_rng(4)
+    n_faces = 64
+    rest = np.stack([_rest_triangle(rng, "regular", 1.0) for _ in range(n_faces)])
+    cur = []
+    for f in range(n_faces):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        h = EPS_DEGENERATE * (1.0 + (f - n_faces // 2) * 1e-15)
+        flat = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.4, h, 0.0]])
+        cur.append(flat @ q.T + rng.normal(size=3))
+    cur_v = np.concatenate(cur)
+    mesh = TriangleMesh(np.concatenate(rest).astype(np.float32), np.arange(3 * n_faces).reshape(-1, 3))
+    assert np.all(_branch_points(cur_v, mesh, games=False))
+    n = 20 * n_faces
+    face = np.repeat(np.arange(n_faces), 20)
+    for law in ("affine", "rigid"):
+        anchors = LocalAnchors(face, rng.uniform(0, 1, (n, 2)), rng.normal(0, 0.5, n),
+                               rng.normal(size=(n, 4)), rng.uniform(0.01, 0.1, (n, 3)), law)
+        anchoring = Anchoring(mesh, anchors)
+        ref = remap(anchoring, cur_v)
+        out = rf.FastRemapper(anchoring, backend="numba").remap(cur_v)
+        mean_bound, cov_bound = rf.float32_error_bounds(anchoring, cur_v)
+        mean_err = np.linalg.norm(out.means - ref.means, axis=1)
+        assert np.all(mean_err <= mean_bound), (law, float(np.max(mean_err / mean_bound)))
+        if law == "affine":
+            cov_err = np.linalg.norm(out.covariances() - ref.covariances, axis=(1, 2))
+            assert np.all(cov_err <= cov_bound), float(np.max(cov_err / cov_bound))

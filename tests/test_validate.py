@@ -61,7 +61,8 @@ def test_catalogue_entries_are_complete():
     # Codes the spec requires to be errors.
     for code in ("ANCHOR_EXTENSION_REQUIRED", "EXTENSION_NOT_DECLARED", "ANCHOR_FACE_OUT_OF_RANGE",
                  "ANCHOR_BOUND_TO_DEGENERATE", "GAMES_BARYCENTRICS_OUTSIDE_SIMPLEX",
-                 "REST_POSE_MEAN_MISMATCH", "REST_POSE_COVARIANCE_MISMATCH"):
+                 "REST_POSE_MEAN_MISMATCH", "REST_POSE_COVARIANCE_MISMATCH",
+                 "ANCHOR_MESH_MULTIPLE_INSTANCES"):
         assert CATALOGUE[code].severity == Severity.ERROR
     # Barycentrics outside the simplex are legal for `local`: information at most.
     assert CATALOGUE["LOCAL_BARYCENTRICS_FAR"].severity >= Severity.INFO

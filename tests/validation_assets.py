@@ -603,6 +603,15 @@ def _(folder):
     return _edited(folder, "drawn.glb", edit)
 
 
+@trigger("ANCHOR_MESH_MULTIPLE_INSTANCES")
+def _(folder):
+    def edit(d):
+        for name in ("anchor 1", "anchor 2"):
+            d.doc["nodes"].append({"mesh": d.ext()["mesh"], "name": name})
+            d.doc["scenes"][0]["nodes"].append(len(d.doc["nodes"]) - 1)
+    return _edited(folder, "drawn-twice.glb", edit)
+
+
 @trigger("MESH_DEGENERATE_TRIANGLES")
 def _(folder):
     return _edited(folder, "degenerate.glb", lambda d: d.extend_anchor_mesh(faces=[0, 1, 1]))

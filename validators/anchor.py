@@ -95,11 +95,17 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
     checked = check_triangles(ctx, TriangleMesh(vertices, faces), pointer)
     result.mesh, result.degenerate = checked.mesh, checked.degenerate
     result.diagonal, result.largest = checked.diagonal, checked.largest
-    for n, node in enumerate(ctx.array("nodes")):
-        if isinstance(node, dict) and node.get("mesh") == m:
-            ctx.issues.add("ANCHOR_MESH_INSTANTIATED", f"node {n} instantiates the anchor mesh "
-                           f"{m}; KHR-only viewers draw its triangles over the splats",
-                           pointer=f"/nodes/{n}/mesh")
+    users = [n for n, node in enumerate(ctx.array("nodes"))
+             if isinstance(node, dict) and node.get("mesh") == m]
+    for n in users:
+        ctx.issues.add("ANCHOR_MESH_INSTANTIATED", f"node {n} instantiates the anchor mesh "
+                       f"{m}; KHR-only viewers draw its triangles over the splats",
+                       pointer=f"/nodes/{n}/mesh")
+    if len(users) > 1:
+        ctx.issues.add("ANCHOR_MESH_MULTIPLE_INSTANCES", f"{len(users)} nodes ("
+                       f"{', '.join(map(str, users))}) instantiate the anchor mesh {m}; at most "
+                       f"one may (which instance drives the splats would be ambiguous)",
+                       pointer=f"/nodes/{users[1]}/mesh")
     return result
 
 

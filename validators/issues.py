@@ -283,6 +283,10 @@ _ENTRIES = [
     _c("ANCHOR_MESH_INSTANTIATED", W, "Anchor mesh", "A node instantiates the anchor mesh, so "
        "KHR-only viewers draw the triangles over the splats (the spec says SHOULD NOT).",
        "/nodes/{n}/mesh", "Remove the mesh from the node (the extension reaches it by index)."),
+    _c("ANCHOR_MESH_MULTIPLE_INSTANCES", E, "Anchor mesh", "More than one node instantiates "
+       "the anchor mesh (the spec says MUST NOT): each instance may carry its own skin or morph "
+       "weights, so which one drives the splats is ambiguous; readers refuse the asset.",
+       "/nodes/{n}/mesh", "Instantiate the anchor mesh with at most one node (preferably none)."),
     _c("MESH_DEGENERATE_TRIANGLES", W, "Anchor mesh", "Triangles of the anchor mesh are "
        "degenerate at rest by the spec's rule (a ≤ ε_deg ℓ², ε_deg = 1e-6); count and "
        "examples. (Splats bound to them are ANCHOR_BOUND_TO_DEGENERATE.)",

@@ -19,7 +19,10 @@ Remap cases cover (see :func:`remap_cases`):
   feet outside the triangle), quantized anchor accessors, 8/16/32-bit face indices;
 * extremes: zero-area current triangles (segments, points, ties), faces degenerate at rest,
   slivers, inverted (folded and mirrored) triangles, 100× stretch, 0.01× compression,
-  coordinates offset by 10⁵, very small and very large splats, nearly coincident vertices.
+  coordinates offset by 10⁵, very small and very large splats, nearly coincident vertices;
+* the rules of spec v1.1 (:mod:`.cases_rules`) and the other valid encodings a reader must
+  accept (:mod:`.cases_encodings`: integer localScale, quantized rest pose, byteStride, a
+  non-indexed anchor mesh, node transforms).
 """
 from __future__ import annotations
 
@@ -578,7 +581,8 @@ def _degenerate_rest_case(profile: str, law: str | None) -> RemapCase:
                                ("opened and stretched", opened_stretched)], mesh)
     face = _faces_from_counts([6, 6, 6, 6, 3, 3])
     anchors = _anchors(profile, law, mesh, face, _dirichlet(rng, len(face)), rng)
-    rule = ("the local rule for faces degenerate at rest applies (C_r^-1 := identity, k := 1)"
+    rule = ("the local rule for faces degenerate at rest applies (G := I, k := 1: the splat "
+            "moves and rotates with the current frame, unscaled)"
             if profile == "local" else "games rebuilds frames from the current triangle only")
     return _case(cid, f"{profile} profile{f', {law} law' if law else ''}: splats bound to faces "
                  f"that are degenerate at rest (a segment, a zero edge, a point; writers must "
@@ -819,10 +823,11 @@ def _extreme_cases() -> list[RemapCase]:
 
 def remap_cases() -> list[RemapCase]:
     """All remap cases, in suite order."""
-    from .cases_rules import rule_cases   # that module builds on the helpers of this one
+    from .cases_encodings import encoding_cases   # these modules build on the helpers of
+    from .cases_rules import rule_cases           # this one
 
     return (_source_cases() + _per_face_cases() + _vertex_edge_cases() + _quantized_cases()
-            + _face_index_cases() + _extreme_cases() + rule_cases())
+            + _face_index_cases() + _extreme_cases() + rule_cases() + encoding_cases())
 
 
 # --------------------------------------------------------------------------- invalid assets
@@ -996,6 +1001,57 @@ def _m_rho_u16(doc, blob):
     return doc, blob
 
 
+def _splat_prim(doc: dict) -> dict:
+    """The (single) anchored splat primitive."""
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            if _ANCHOR in prim.get("extensions", {}).get("KHR_gaussian_splatting", {}) \
+                    .get("extensions", {}):
+                return prim
+    raise KeyError("no anchored primitive")
+
+
+def _m_zero_rotation(doc, blob):
+    e = _ext(doc)
+    q = accessor_bytes(doc, blob, e["localRotation"])
+    q[len(q) // 2] = 0.0
+    return doc, patch_accessor(doc, blob, e["localRotation"], q)
+
+
+def _m_negative_scale(doc, blob):
+    e = _ext(doc)   # the base shares localScale with KHR_gaussian_splatting:SCALE
+    s = accessor_bytes(doc, blob, e["localScale"])
+    s[len(s) // 3, 1] = -s[len(s) // 3, 1]
+    return doc, patch_accessor(doc, blob, e["localScale"], s)
+
+
+def _m_rest_value(attribute: str, row: int, column: int, value: float):
+    def mutate(doc, blob):
+        index = _splat_prim(doc)["attributes"][attribute]
+        acc = doc["accessors"][index]
+        bounds = (acc.get("min"), acc.get("max"))
+        v = accessor_bytes(doc, blob, index)
+        v[row, column] = value
+        blob = patch_accessor(doc, blob, index, v)
+        if bounds[0] is not None:
+            acc["min"], acc["max"] = bounds   # keep the JSON bounds finite
+        return doc, blob
+    return mutate
+
+
+def _m_splat_not_points(doc, blob):
+    _splat_prim(doc)["mode"] = 4
+    return doc, blob
+
+
+def _m_anchor_mesh_two_nodes(doc, blob):
+    m = _ext(doc)["mesh"]
+    for name in ("anchor mesh instance 1", "anchor mesh instance 2"):
+        doc["nodes"].append({"mesh": m, "name": name})
+        doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    return doc, blob
+
+
 def invalid_cases() -> list[InvalidCase]:
     """Assets a plugin must refuse, each breaking one rule of ``spec/README.md``."""
     spec = "spec/README.md"
@@ -1090,6 +1146,44 @@ def invalid_cases() -> list[InvalidCase]:
                     "infinite coordinate.", "glTF 2.0 accessor data must be finite (Khronos "
                     "glTF-Validator: ACCESSOR_INVALID_FLOAT); the triangles using it have no "
                     "frame", "games", _m_inf_position, "NON_FINITE_VALUE"),
+        InvalidCase("invalid-local-rotation-zero", "The localRotation of one splat is (0, 0, 0, "
+                    "0).", f"{spec} §Accessor component types and dequantization (Quaternions): a "
+                    "localRotation of length zero (after dequantization) has no rotation; "
+                    "readers MUST refuse the asset",
+                    "local", _m_zero_rotation, "ROTATION_NOT_UNIT"),
+        InvalidCase("invalid-local-scale-negative", "One component of one splat's localScale "
+                    "(shared with KHR_gaussian_splatting:SCALE) is negative.", f"{spec} "
+                    "§Accessor component types and dequantization (Scales): every localScale "
+                    "component MUST be >= 0 after dequantization; readers MUST refuse an asset "
+                    "with a negative one", "local", _m_negative_scale, "SCALE_NEGATIVE"),
+        InvalidCase("invalid-non-finite-rest-position", "One splat's rest POSITION holds a NaN.",
+                    f"{spec} §Properties: the rest pose (POSITION, KHR_gaussian_splatting:"
+                    "ROTATION, :SCALE) MUST be finite; readers MUST refuse a non-finite value",
+                    "local", _m_rest_value("POSITION", 5, 2, np.nan), "NON_FINITE_VALUE"),
+        InvalidCase("invalid-non-finite-rest-rotation", "One splat's rest "
+                    "KHR_gaussian_splatting:ROTATION holds an infinity.", f"{spec} §Properties: "
+                    "the rest pose (POSITION, KHR_gaussian_splatting:ROTATION, :SCALE) MUST be "
+                    "finite; readers MUST refuse a non-finite value", "local",
+                    _m_rest_value("KHR_gaussian_splatting:ROTATION", 7, 0, np.inf),
+                    "NON_FINITE_VALUE"),
+        InvalidCase("invalid-non-finite-rest-scale", "One splat's rest "
+                    "KHR_gaussian_splatting:SCALE holds an infinity (games: SCALE is not an "
+                    "anchor accessor).", f"{spec} §Properties: the rest pose (POSITION, "
+                    "KHR_gaussian_splatting:ROTATION, :SCALE) MUST be finite; readers MUST "
+                    "refuse a non-finite value", "games",
+                    _m_rest_value("KHR_gaussian_splatting:SCALE", 3, 1, np.inf),
+                    "NON_FINITE_VALUE"),
+        InvalidCase("invalid-splat-primitive-not-points", "The anchored splat primitive has mode "
+                    "4 (TRIANGLES) and no indices; everything else is valid.", f"{spec} "
+                    "§Where the extension object lives: the splat primitive MUST have mode "
+                    "POINTS (0); readers MUST refuse an asset whose anchored primitive has "
+                    "another mode", "local", _m_splat_not_points,
+                    "KHR_PRIMITIVE_NOT_POINTS"),
+        InvalidCase("invalid-anchor-mesh-multiple-instances", "Two nodes instantiate the anchor "
+                    "mesh.", f"{spec} §The anchor mesh: the anchor mesh MUST NOT be instantiated "
+                    "by more than one node (which instance's skin or morph weights would drive "
+                    "the splats is ambiguous); readers MUST refuse such an asset", "games",
+                    _m_anchor_mesh_two_nodes, "ANCHOR_MESH_MULTIPLE_INSTANCES"),
     ]
 
 

@@ -175,7 +175,13 @@ def _check_cov(got, ref, rest_ref, tol: dict, dump, pose) -> Check:
     scale = np.maximum(np.linalg.norm(ref, axis=(1, 2)),
                        tol["floor"] * np.linalg.norm(rest_ref, axis=(1, 2)))
     scale = np.where(scale > 0, scale, np.finfo(np.float64).tiny)
-    return _worst("covariance", dump, pose, err, _pose_tolerance(tol, "rtol", pose) * scale)
+    rest_norm = np.linalg.norm(rest_ref, axis=(1, 2))
+    extra = 0.0
+    if "rest_rtol" in tol:
+        per = tol.get("rest_rtol_per_pose")
+        extra = float(per[pose or 0]) if per else float(tol["rest_rtol"])
+    return _worst("covariance", dump, pose, err,
+                  _pose_tolerance(tol, "rtol", pose) * scale + extra * rest_norm)
 
 
 def _check_values(quantity, got, ref, atol, rtol, dump, pose) -> Check:

@@ -91,7 +91,10 @@ COV_REASON = (
     "error of an ill-conditioned deformation gradient G (ratio of its largest to smallest "
     "singular value). When a triangle collapses the covariance collapses with it; the error "
     "is then measured against 1e-3 of the splat's rest covariance instead of a vanishing "
-    "number.")
+    "number. On current faces below half the degenerate threshold (local profile) the float32 "
+    "scaled normal m is uncertain by dm = min(8 u P / sqrt(a_c a_r), 6 sqrt(u P / a_r)) "
+    "(P = |e1||e2|): Z_normal = largest sqrt(3) (2 ||A||_2 + dm) dm, a tolerance relative to "
+    "the splat's rest covariance.")
 OPACITY_REASON = ("pass-through: the remap never changes opacity; 2^-23 only admits a "
                   "conversion through another floating-point type in the harness.")
 SH_REASON = ("pass-through: the remap never changes SH coefficients (they are not rotated "
@@ -99,10 +102,12 @@ SH_REASON = ("pass-through: the remap never changes SH coefficients (they are no
              "floating-point type in the harness.")
 
 
-def _normal_term(anchors: LocalAnchors, rest, tri: np.ndarray, face: np.ndarray) -> float:
-    """Y_normal (see MEAN_REASON): the float32 error bound of the normal offset d m."""
+def _normal_error(rest, tri: np.ndarray, face: np.ndarray):
+    """Per splat: the float32 error bound of the scaled normal m (faces regular at rest),
+    min(8 u P / sqrt(a_c a_r), 6 sqrt(u P / a_r)), its counterpart on faces degenerate at rest
+    (the tilt of n_c, min(2, 8 u P / a_c) while a_c > eps_deg l^2 / 2, else 0), and whether the
+    current face is below half the degenerate threshold (outside kappa_triangle's reach)."""
     u = F32_UNIT_ROUNDOFF
-    d = np.abs(anchors.normal_offset.astype(np.float64))
     e1 = tri[face, 1] - tri[face, 0]
     e2 = tri[face, 2] - tri[face, 0]
     p = np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
@@ -115,8 +120,19 @@ def _normal_term(anchors: LocalAnchors, rest, tri: np.ndarray, face: np.ndarray)
         regular_term = np.minimum(first, 6 * np.sqrt(u * p / a_r))
         tilt = np.where(a_c > 0, 8 * u * p / a_c, np.inf)
         degenerate_term = np.where(a_c > 0.5 * EPS_DEGENERATE * longest2, np.minimum(2.0, tilt), 0.0)
-    y = d * np.where(reg, regular_term, degenerate_term)
-    return float(np.max(y)) if len(y) else 0.0
+    low = a_c <= 0.5 * EPS_DEGENERATE * longest2
+    return reg, np.where(reg, regular_term, degenerate_term), low
+
+
+def _normal_terms(anchors: LocalAnchors, rest, tri: np.ndarray, face: np.ndarray,
+                  a: np.ndarray) -> tuple[float, float]:
+    """Y_normal (see MEAN_REASON) and Z_normal (see COV_REASON)."""
+    reg, dm, low = _normal_error(rest, tri, face)
+    y = np.abs(anchors.normal_offset.astype(np.float64)) * dm
+    # ||dSigma||_F <= (2 ||A||_2 + dm) dm sum s^2 <= sqrt(3) (2 ||A||_2 + dm) dm ||Sigma_rest||_F
+    norm_a = np.linalg.norm(a[face], ord=2, axis=(1, 2))
+    z = np.where(reg & low, np.sqrt(3.0) * (2 * norm_a + dm) * dm, 0.0)
+    return (float(np.max(y)) if len(y) else 0.0), (float(np.max(z)) if len(z) else 0.0)
 
 
 def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
@@ -129,7 +145,7 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
     b = anchors.barycentrics.astype(np.float64)
     d = np.abs(anchors.normal_offset.astype(np.float64)) if local else np.zeros(len(face))
     x = max(float(np.max(np.linalg.norm(m, axis=1))) for m in expected_means)
-    lever = y = y_normal = 0.0
+    lever = y = y_normal = z_normal = 0.0
     k_tri = k_g = 1.0
     for verts in poses:
         tri = mesh.triangles(verts)
@@ -147,7 +163,9 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
         if local:
             k = np.where(rest.regular[face], np.sqrt(fr.area2[face] /
                                                      np.where(rest.regular[face], rest.area2[face], 1.0)), 1.0)
-            y_normal = max(y_normal, _normal_term(anchors, rest, tri, face))
+            _, _, a_law = face_matrices(rest, fr, tri, anchors.deformation)
+            yn, zn = _normal_terms(anchors, rest, tri, face, a_law)
+            y_normal, z_normal = max(y_normal, yn), max(z_normal, zn)
         else:
             k = np.zeros(len(face))
         lever = max(lever, float(np.max(np.abs(b[:, 0]) * e1 + np.abs(b[:, 1]) * e2 + d * k)))
@@ -161,36 +179,40 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
             ok = top > 0
             if np.any(ok):
                 k_g = max(k_g, float(np.max(top[ok] / low[ok])))
-    return {"X": x, "lever": lever, "Y": y, "Y_normal": y_normal, "kappa_triangle": k_tri,
-            "kappa_deformation": k_g}
+    return {"X": x, "lever": lever, "Y": y, "Y_normal": y_normal, "Z_normal": z_normal,
+            "kappa_triangle": k_tri, "kappa_deformation": k_g}
 
 
-def _tolerance_values(terms: dict[str, float]) -> tuple[float, float]:
+def _tolerance_values(terms: dict[str, float]) -> tuple[float, float, float]:
     u = F32_UNIT_ROUNDOFF
     mean = 8 * u * (terms["X"] + terms["lever"]) + terms["Y_normal"]
     cov = COV_BASE + 32 * u * (terms["kappa_triangle"] + terms["kappa_deformation"])
-    return _ceil2(mean), _ceil2(cov)
+    return _ceil2(mean), _ceil2(cov), _ceil2(terms["Z_normal"])
 
 
 def _tolerances(terms: dict[str, float], per_pose: list[dict[str, float]]) -> dict:
-    mean, cov = _tolerance_values(terms)
+    mean, cov, rest_rtol = _tolerance_values(terms)
     pose_values = [_tolerance_values(t) for t in per_pose]
     rounded = {k: float(f"{v:.6g}") for k, v in terms.items()}
     return {
         "mean": {"atol": mean, "unit": "scene units",
-                 "per_pose": [m for m, _ in pose_values],
+                 "per_pose": [m for m, _, _ in pose_values],
                  "metric": "|mean - mean_ref| (Euclidean) <= atol, per splat and pose (atol of "
                            "the pose from per_pose; the rest dump uses pose 0's)",
                  "formula": "8 u (X + lever) + Y_normal, u = 2^-24",
                  "terms": {k: rounded[k] for k in ("X", "lever", "Y", "Y_normal")},
                  "reason": MEAN_REASON},
-        "covariance": {"rtol": cov, "floor": COV_FLOOR,
-                       "per_pose": [c for _, c in pose_values],
+        "covariance": {"rtol": cov, "floor": COV_FLOOR, "rest_rtol": rest_rtol,
+                       "per_pose": [c for _, c, _ in pose_values],
+                       "rest_rtol_per_pose": [r for _, _, r in pose_values],
                        "metric": "||S - S_ref||_F <= rtol * max(||S_ref||_F, floor * "
-                                 "||S_rest_ref||_F), per splat and pose (rtol of the pose from "
-                                 "per_pose; the rest dump uses pose 0's)",
-                       "formula": "4e-6 + 32 u (kappa_triangle + kappa_deformation), u = 2^-24",
-                       "terms": {k: rounded[k] for k in ("kappa_triangle", "kappa_deformation")},
+                                 "||S_rest_ref||_F) + rest_rtol * ||S_rest_ref||_F, per splat and "
+                                 "pose (rtol and rest_rtol of the pose from per_pose and "
+                                 "rest_rtol_per_pose; the rest dump uses pose 0's)",
+                       "formula": "rtol = 4e-6 + 32 u (kappa_triangle + kappa_deformation), "
+                                  "rest_rtol = Z_normal, u = 2^-24",
+                       "terms": {k: rounded[k] for k in ("kappa_triangle", "kappa_deformation",
+                                                         "Z_normal")},
                        "reason": COV_REASON},
         "opacity": {"atol": 2.0 ** -23, "metric": "|o - o_ref| <= atol", "reason": OPACITY_REASON},
         "sh": {"atol": 2.0 ** -23, "rtol": 2.0 ** -23,
@@ -263,7 +285,10 @@ def _anchor_summary(path: Path) -> dict:
     out["mesh"] = ext["mesh"]
     out["primitive"] = ext.get("primitive", 0)
     out["vertex_count"] = doc["accessors"][anchor_prim["attributes"]["POSITION"]]["count"]
-    out["face_count"] = doc["accessors"][anchor_prim["indices"]]["count"] // 3
+    indexed = anchor_prim.get("indices") is not None
+    out["indexed"] = indexed
+    out["face_count"] = (doc["accessors"][anchor_prim["indices"]]["count"] if indexed
+                         else out["vertex_count"]) // 3
     types = {}
     for key in ("faceIndex", "barycentrics", "normalOffset", "localRotation", "localScale", "rho"):
         if key in ext:

@@ -29,12 +29,15 @@ from ..errors import FormatError
 from ..io.gltf import read_gltf
 from ..model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
 from .. import remap as reference
+from .glb import unpack_glb
 from .minimal_reader import Raw, Refused, dequantize, read_anchored_glb
 
 __all__ = ["Plugin", "Refused", "run_plugin", "write_array", "ReferencePlugin", "FastPlugin",
            "RawReferencePlugin", "cov6", "suite_cases", "read_asset"]
 
 _COV6 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_KHR = "KHR_gaussian_splatting"
+_ANCHOR = "GSVERSE_gaussian_splatting_mesh_anchor"
 
 
 def cov6(cov: np.ndarray) -> np.ndarray:
@@ -139,7 +142,8 @@ def read_asset(path: str):
 
 
 def _require_finite(prim) -> None:
-    """Refuse non-finite anchor data (invalid glTF; the remap would have no finite output)."""
+    """Refuse non-finite anchor data or rest pose (invalid glTF; the remap would have no finite
+    output), a zero localRotation and a negative localScale (spec v1.1 refusals)."""
     anchors = prim.anchoring.anchors
     arrays = [prim.anchoring.mesh.vertices, anchors.barycentrics]
     if isinstance(anchors, LocalAnchors):
@@ -148,6 +152,42 @@ def _require_finite(prim) -> None:
         arrays += [anchors.rho]
     if not all(np.all(np.isfinite(a)) for a in arrays):
         raise Refused("non-finite anchor data (NaN or infinity)")
+    splats = prim.splats
+    if not all(np.all(np.isfinite(a)) for a in (splats.means, splats.rotations, splats.scales)):
+        raise Refused("non-finite rest pose (POSITION, ROTATION or SCALE holds NaN or infinity)")
+    if isinstance(anchors, LocalAnchors):
+        zero = np.flatnonzero(~np.any(anchors.local_rotation != 0, axis=1))
+        if zero.size:
+            raise Refused(f"localRotation of splat {int(zero[0])} has length zero")
+        negative = np.flatnonzero(np.any(anchors.local_scale < 0, axis=1))
+        if negative.size:
+            raise Refused(f"localScale of splat {int(negative[0])} is negative")
+
+
+def _require_document_rules(asset_path: str) -> None:
+    """Refuse what the JSON document alone shows (spec v1.1): an anchored splat primitive
+    whose mode is not POINTS, and an anchor mesh instantiated by more than one node."""
+    try:
+        doc, _ = unpack_glb(Path(asset_path).read_bytes())
+    except (OSError, ValueError):
+        return   # the importer reports unreadable containers
+    meshes = doc.get("meshes") if isinstance(doc.get("meshes"), list) else []
+    nodes = doc.get("nodes") if isinstance(doc.get("nodes"), list) else []
+    for m, mesh in enumerate(meshes):
+        for p, prim in enumerate(mesh.get("primitives", []) if isinstance(mesh, dict) else []):
+            khr = (prim.get("extensions") or {}).get(_KHR) if isinstance(prim, dict) else None
+            ext = (khr.get("extensions") or {}).get(_ANCHOR) if isinstance(khr, dict) else None
+            if ext is None:
+                continue
+            if prim.get("mode", 4) != 0:
+                raise Refused(f"the anchored splat primitive meshes[{m}].primitives[{p}] has "
+                              f"mode {prim.get('mode', 4)!r}, not POINTS (0)")
+            anchor_mesh = ext.get("mesh") if isinstance(ext, dict) else None
+            users = [n for n, node in enumerate(nodes)
+                     if isinstance(node, dict) and node.get("mesh") == anchor_mesh]
+            if anchor_mesh is not None and len(users) > 1:
+                raise Refused(f"the anchor mesh {anchor_mesh} is instantiated by {len(users)} "
+                              f"nodes ({', '.join(map(str, users))}); at most one is allowed")
 
 
 class ReferencePlugin:
@@ -166,6 +206,7 @@ class ReferencePlugin:
             asset = read_asset(asset_path)
         except FormatError as err:
             raise Refused(str(err)) from None
+        _require_document_rules(asset_path)
         anchored = asset.anchored
         if len(anchored) != 1:
             raise Refused(f"expected one anchored splat primitive, found {len(anchored)}")

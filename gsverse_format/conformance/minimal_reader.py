@@ -7,9 +7,11 @@ the order it does it, so that it can be ported line by line to C#, C++ or GDScri
 2. find the ``KHR_gaussian_splatting`` POINTS primitive that carries the anchor extension;
 3. read the rest pose (POSITION, ROTATION, SCALE, OPACITY, SH) and the anchor accessors as raw
    typed arrays, checking every accessor against its buffer view;
-4. check the rules a plugin must enforce before it can remap (anchor mesh mode and types,
-   profile, required accessors, allowed component types, counts, face index range, finite
-   values) and refuse the asset otherwise (:class:`Refused`);
+4. check the rules a plugin must enforce before it can remap (splat primitive mode POINTS,
+   anchor mesh mode and types, at most one node instantiating the anchor mesh, profile,
+   required accessors, allowed component types, counts, face index range, finite anchor data
+   and rest pose, no zero ``localRotation``, no negative ``localScale``) and refuse the asset
+   otherwise (:class:`Refused`);
 5. dequantize (:func:`dequantize`) and renormalize quantized quaternions.
 
 Everything is returned raw (stored dtype, component type, normalized flag), so that an
@@ -175,8 +177,10 @@ def _anchored_primitive(doc: dict) -> tuple[dict, dict, dict]:
     for m, mesh in enumerate(doc.get("meshes", [])):
         for prim in mesh.get("primitives", []):
             khr = (prim.get("extensions") or {}).get(KHR)
-            if prim.get("mode", 4) == 0 and isinstance(khr, dict) \
-                    and ANCHOR in (khr.get("extensions") or {}):
+            if isinstance(khr, dict) and ANCHOR in (khr.get("extensions") or {}):
+                if prim.get("mode", 4) != 0:
+                    raise Refused(f"the anchored splat primitive of mesh {m} has mode "
+                                  f"{prim.get('mode', 4)!r}, not POINTS (0)")
                 found.append((prim, khr, khr["extensions"][ANCHOR]))
     if len(found) != 1:
         raise Refused(f"expected one anchored splat primitive, found {len(found)}")
@@ -211,11 +215,19 @@ def read_anchored_glb(path) -> RawAsset:
             [(s, "SH") for s in sh]:
         if raw.values.shape[0] != n:
             raise Refused(f"{what} count differs from POSITION count")
+    for raw, what in ((positions, "POSITION"), (rotations, "ROTATION"), (scales, "SCALE")):
+        if raw.component_type == FLOAT and not np.all(np.isfinite(raw.values)):
+            raise Refused(f"rest pose {what} holds NaN or infinity")
 
     # the anchor mesh
     if not isinstance(ext, dict):
         raise Refused("anchor extension must be an object")
     mesh = d.get("meshes", ext.get("mesh"), "anchor mesh")
+    users = [i for i, node in enumerate(doc.get("nodes", []))
+             if isinstance(node, dict) and node.get("mesh") == ext["mesh"]]
+    if len(users) > 1:
+        raise Refused(f"the anchor mesh is instantiated by {len(users)} nodes; at most one is "
+                      f"allowed")
     aprim_list = mesh.get("primitives", [])
     p = ext.get("primitive", 0)
     if not isinstance(p, int) or not 0 <= p < len(aprim_list):
@@ -274,5 +286,12 @@ def read_anchored_glb(path) -> RawAsset:
     for name, raw in [("anchor POSITION", apos)] + list(anchors.items()):
         if raw.component_type == FLOAT and not np.all(np.isfinite(raw.values)):
             raise Refused(f"{name} holds NaN or infinity")
+    if profile == "local":
+        zero = np.flatnonzero(~np.any(anchors["localRotation"].values != 0, axis=1))
+        if zero.size:
+            raise Refused(f"localRotation of splat {int(zero[0])} has length zero")
+        negative = np.flatnonzero(np.any(dequantize(anchors["localScale"]) < 0, axis=1))
+        if negative.size:
+            raise Refused(f"localScale of splat {int(negative[0])} is negative")
     return RawAsset(positions, rotations, scales, opacities, sh,
                     apos.values.astype(np.float32), faces, profile, deformation, anchors)

@@ -1008,6 +1008,11 @@ class _AssetReader:
         prims = self.r.meshes[m].primitives or []
         p = _index(obj.get("primitive", 0), len(prims), f"{where}.primitive")
         mesh = self.anchor_mesh(m, p)
+        instances = [n for n, node in enumerate(self.r.gltf.nodes or []) if node.mesh == m]
+        if len(instances) > 1:
+            raise FormatError(f"{where}: the anchor mesh {m} is instantiated by {len(instances)} "
+                              f"nodes ({', '.join(map(str, instances))}); at most one may "
+                              f"instantiate it (which instance deforms the splats is ambiguous)")
         profile = obj.get("profile")
         if profile not in ("local", "games"):
             raise FormatError(f"{where}.profile must be 'local' or 'games', got {profile!r}")
@@ -1052,6 +1057,14 @@ class _AssetReader:
                 renormalize=ctype != FLOAT))
             scale = checked("localScale", r.floats(
                 obj["localScale"], f"{where}.localScale", *ANCHOR_ACCESSOR_FORMATS["localScale"]))
+            zero = np.flatnonzero(~np.any(rotation != 0, axis=1))
+            if zero.size:
+                raise FormatError(f"{where}.localRotation: {zero.size} zero quaternion(s) (splat "
+                                  f"{int(zero[0])}); a rotation must have non-zero length")
+            negative = np.flatnonzero(np.any(scale < 0, axis=1))
+            if negative.size:
+                raise FormatError(f"{where}.localScale: {negative.size} splat(s) with a negative "
+                                  f"scale (splat {int(negative[0])}); scales are linear, >= 0")
             anchors = LocalAnchors(face, bary, offset[:, 0], rotation, scale, deformation)
         return Anchoring(mesh, anchors)
 
@@ -1210,7 +1223,14 @@ def _read(path: str, max_bytes: int) -> SplatAsset:
             extensions = prim.extensions or {}
             if not isinstance(extensions, dict):
                 raise FormatError(f"meshes[{m}].primitives[{p}].extensions must be an object")
-            if prim.mode != pygltflib.POINTS or KHR not in extensions:
+            if KHR not in extensions:
+                continue
+            if prim.mode != pygltflib.POINTS:
+                khr = extensions[KHR]
+                nested = khr.get("extensions") if isinstance(khr, dict) else None
+                if isinstance(nested, dict) and ANCHOR in nested:
+                    raise FormatError(f"meshes[{m}].primitives[{p}]: an anchored splat primitive "
+                                      f"must have mode POINTS (0), not {prim.mode!r}")
                 continue
             where = f"meshes[{m}].primitives[{p}]"
             primitives.append(assets.splat_primitive(prim, extensions[KHR], name, where))
