@@ -881,3 +881,141 @@ def test_library_reader_refuses_every_invalid_case(suite, manifests):
         with pytest.raises(FormatError) as err:
             read_gltf(suite / "cases" / cid / "asset.glb")
         assert "\n" not in str(err.value), cid
+
+
+def _splat_node_scale(asset_path: str) -> float:
+    from gsverse_format.conformance.glb import unpack_glb
+
+    doc, _ = unpack_glb(Path(asset_path).read_bytes())
+    splat_mesh = next(i for i, m in enumerate(doc["meshes"]) for p in m["primitives"]
+                      if "KHR_gaussian_splatting" in p.get("extensions", {}))
+    node = next((n for n in doc.get("nodes", []) if n.get("mesh") == splat_mesh), {})
+    return float(node.get("scale", [1.0])[0])
+
+
+class _WorldSpacePlugin(ReferencePlugin):
+    """Remaps games splats in world space (the splat node's scale applied to the anchor mesh
+    first, undone on the outputs): GaMeS's ε then acts after the node transform."""
+
+    def load(self, asset_path):
+        super().load(asset_path)
+        self.scale = _splat_node_scale(asset_path)
+
+    def apply_pose(self, vertices):
+        from gsverse_format.model import Anchoring, TriangleMesh
+
+        if self.prim.anchoring.anchors.profile != "games":
+            return super().apply_pose(vertices)
+        s = self.scale
+        mesh = self.prim.anchoring.mesh
+        world = Anchoring(TriangleMesh(mesh.vertices.astype(np.float64) * s, mesh.faces),
+                          self.prim.anchoring.anchors)
+        r = remap_module.remap(world, vertices.astype(np.float64) * s)
+        from gsverse_format.conformance.harness import cov6
+
+        return {"means": r.means / s, "cov": cov6(r.covariances / (s * s))}
+
+
+def test_broken_games_epsilon_after_node_transform_fails_the_node_scale_case(suite, manifests,
+                                                                            tmp_path):
+    report = _run(suite, tmp_path / "r", _WorldSpacePlugin)
+    assert _failed(report) == _tagged(manifests, "rule:games-epsilon-space")
+
+
+class _RhoOnCovariancePlugin(ReferencePlugin):
+    """Reads ρ as a factor of the covariance (the GaMeS paper's N(m, ρ Σ_V)): √ρ on scales."""
+
+    def load(self, asset_path):
+        super().load(asset_path)
+        a = self.prim.anchoring.anchors
+        if a.profile == "games":
+            from dataclasses import replace
+
+            from gsverse_format.model import Anchoring
+
+            self.prim.anchoring = Anchoring(self.prim.anchoring.mesh,
+                                            replace(a, rho=np.sqrt(np.maximum(a.rho, 0.0))))
+
+
+def test_broken_rho_on_covariance_fails_the_games_cases(suite, manifests, tmp_path):
+    from gsverse_format.conformance import harness
+
+    harness._CACHE.clear()          # the plugin edits the cached asset: start from a fresh copy
+    try:
+        report = _run(suite, tmp_path / "r", _RhoOnCovariancePlugin)
+    finally:
+        harness._CACHE.clear()
+    games = _ids(manifests, lambda m: m["kind"] == "remap" and "profile:games" in m["tags"])
+    assert _failed(report) == games
+
+
+def _games_float32(tri64: np.ndarray, literal_centroid: bool):
+    """The regular games frame in float32 arithmetic; the centroid either relative to v0
+    (spec v1.1) or as the literal (v0 + v1 + v2)/3 from absolute coordinates."""
+    f = np.float32
+    tri = tri64.astype(f)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    if literal_centroid:
+        c = (tri[:, 0] + tri[:, 1] + tri[:, 2]) / f(3)
+        u, w = tri[:, 1] - c, tri[:, 2] - c
+    else:
+        g = (e1 + e2) / f(3)
+        u, w = e1 - g, e2 - g
+    cross = np.cross(e1, e2)
+    with np.errstate(all="ignore"):
+        n = cross / np.linalg.norm(cross, axis=1, keepdims=True).astype(f)
+        lu = np.linalg.norm(u, axis=1).astype(f)
+        b1 = u / lu[:, None]
+        b2 = np.cross(n, b1)
+        base = np.stack([np.full(len(tri), f(1e-8)), (lu + f(1e-8)) / f(2),
+                         np.einsum("ij,ij->i", w, b2) / f(2)], -1)
+    return np.stack([n, b1, b2], -1).astype(np.float64), base.astype(np.float64)
+
+
+class _Float32GamesPlugin(ReferencePlugin):
+    """games in float32: frames of regular faces as above (degenerate ones from the reference),
+    the mean either v0 + α1 e1 + α2 e2 or the naive α0 v0 + α1 v1 + α2 v2, both in float32."""
+
+    literal_centroid = False
+    naive_mean = True
+
+    def apply_pose(self, vertices):
+        a = self.prim.anchoring.anchors
+        if a.profile != "games":
+            return super().apply_pose(vertices)
+        from gsverse_format.conformance.harness import cov6
+
+        tri = self.prim.anchoring.mesh.triangles(vertices)
+        rot, base, _ = frames_module.games_frames(tri)
+        rot32, base32 = _games_float32(tri, self.literal_centroid)
+        reg = ~frames_module.degenerate_mask(tri)
+        rot[reg], base[reg] = rot32[reg], base32[reg]
+        face = a.face_index.astype(np.intp)
+        t = tri.astype(np.float32)[face]
+        al = a.barycentrics.astype(np.float32)
+        if self.naive_mean:
+            means = (np.float32(1) - al[:, :1] - al[:, 1:]) * t[:, 0] + al[:, :1] * t[:, 1] \
+                + al[:, 1:] * t[:, 2]
+        else:
+            means = t[:, 0] + al[:, :1] * (t[:, 1] - t[:, 0]) + al[:, 1:] * (t[:, 2] - t[:, 0])
+        sc = (np.maximum(a.rho[:, None].astype(np.float32) * base[face].astype(np.float32), 0)
+              + np.float32(1e-8))
+        m = rot[face].astype(np.float32) * sc[:, None, :]
+        return {"means": means, "cov": cov6(m @ np.swapaxes(m, 1, 2))}
+
+
+class _LiteralCentroidPlugin(_Float32GamesPlugin):
+    literal_centroid = True
+
+
+def test_float32_games_needs_the_relative_centroid_not_the_relative_mean(suite, manifests,
+                                                                         tmp_path):
+    """Spec v1.1 item 11: the naive α0 v0 + α1 v1 + α2 v2 passes in float32; the literal
+    centroid (v0 + v1 + v2)/3 fails the far-from-origin and micro-triangle cases."""
+    with np.errstate(all="ignore"):
+        naive = _failed(_run(suite, tmp_path / "naive", _Float32GamesPlugin))
+        literal = _failed(_run(suite, tmp_path / "literal", _LiteralCentroidPlugin))
+    games = _ids(manifests, lambda m: m["kind"] == "remap" and "profile:games" in m["tags"])
+    assert not naive & games, sorted(naive & games)
+    assert {"games-offset-1e5", "games-near-coincident-vertices"} <= literal
+    assert literal <= games

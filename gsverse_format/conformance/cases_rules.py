@@ -16,7 +16,9 @@ each has a deliberately broken implementation in the tests that fails it:
 * ``local-*-rest-sliver-opened``: rest triangles just above the threshold (a = 1.1·10⁻⁶ ℓ²)
   opened 10⁵× in area: rest quantities must be computed in double precision;
 * ``local-*-float-rotation-norm``: float ``localRotation`` whose length is off unit by up to
-  the writer tolerance (10⁻⁵): readers renormalize every quaternion, float ones included.
+  the writer tolerance (10⁻⁵): readers renormalize every quaternion, float ones included;
+* ``games-node-scale-1e-3``: a splat node scaled by 10⁻³: GaMeS's ε applies in mesh-local
+  units, before node transforms.
 """
 from __future__ import annotations
 
@@ -265,6 +267,33 @@ def _rotation_norm_case(law: str) -> RemapCase:
                  mesh, anchors, poses, rng, 0, edit=off_unit)
 
 
+def _node_scale_case() -> RemapCase:
+    cid = "games-node-scale-1e-3"
+    rng = _rng(cid)
+    mesh = _tube_mesh()
+    face = _faces_from_counts(rng.integers(1, 3, mesh.face_count))
+    anchors = _anchors("games", None, mesh, face, _dirichlet(rng, len(face)), rng)
+    v = mesh.vertices.astype(np.float64)
+    poses = [Pose("rest", mesh.vertices, {"kind": "rest"}),
+             Pose("twist 90", twist(v, 90, (0, 0, 0), 0, 1), {"kind": "analytic", "name": "twist"}),
+             Pose("stretch", stretch(v, (1.5, 0.6, 1.0), (0, 0.5, 0)),
+                  {"kind": "analytic", "name": "stretch"})]
+
+    def node_scale(doc, blob):
+        """The node of the splat mesh scales it by 1e-3 (a model in millimetres)."""
+        splat_mesh = next(i for i, m in enumerate(doc["meshes"]) for p in m["primitives"]
+                          if "KHR_gaussian_splatting" in p.get("extensions", {}))
+        node = next(n for n in doc["nodes"] if n.get("mesh") == splat_mesh)
+        node["scale"] = [1e-3, 1e-3, 1e-3]
+        return doc, blob
+
+    return _case(cid, "games profile: the splat node scales the asset by 1e-3. GaMeS's eps = 1e-8 "
+                 "applies in mesh-local units, before node transforms: a remap done in world "
+                 "space (eps after the node scale) moves the in-plane scales by about 1e-5 "
+                 "local units.", _law_tags("games", None) + ["rule:games-epsilon-space"],
+                 mesh, anchors, poses, rng, 0, edit=node_scale)
+
+
 def rule_cases() -> list[RemapCase]:
     """The cases of this module, in suite order."""
     out = [_threshold_case(profile, law) for profile, law in LAWS]
@@ -273,4 +302,5 @@ def rule_cases() -> list[RemapCase]:
     out += [_scale_case(profile, law, scale) for profile, law in LAWS for scale in SCALES]
     out += [_rest_sliver_case(law) for law in ("affine", "rigid")]
     out += [_rotation_norm_case(law) for law in ("affine", "rigid")]
+    out.append(_node_scale_case())
     return out
