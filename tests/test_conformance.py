@@ -17,6 +17,7 @@ import gsverse_format.quaternion as quaternion
 import gsverse_format.remap as remap_module
 from gsverse_format import frames as frames_module
 from gsverse_format.conformance import cases as case_defs
+from gsverse_format.conformance import invalid_cases as invalid_defs
 from gsverse_format.conformance.check import check_results, format_text, quat_to_matrix
 from gsverse_format.conformance.cli import main
 from gsverse_format.conformance.export import export_suite
@@ -298,9 +299,9 @@ def test_runner_flags_missing_wrong_nonfinite_and_refusals(suite, tmp_path, mani
 
 def test_cli_export_and_dump(tmp_path, capsys, monkeypatch):
     """The console entry points (export and dump on a reduced suite)."""
-    remap_cases, invalid_cases = case_defs._per_face_cases, case_defs.invalid_cases
+    remap_cases, invalid_cases = case_defs._per_face_cases, invalid_defs.invalid_cases
     monkeypatch.setattr(case_defs, "remap_cases", lambda: remap_cases()[:1])
-    monkeypatch.setattr(case_defs, "invalid_cases", lambda: invalid_cases()[:2])
+    monkeypatch.setattr(invalid_defs, "invalid_cases", lambda: invalid_cases()[:2])
     assert main(["export", str(tmp_path / "s")]) == 0
     assert main(["dump", str(tmp_path / "s"), str(tmp_path / "r")]) == 0
     assert main(["check", str(tmp_path / "s"), str(tmp_path / "r")]) == 0

@@ -25,11 +25,11 @@ import numpy as np
 
 from .. import quaternion as quat
 from ..model import TriangleMesh
-from .cases import (LAWS, Pose, RemapCase, _anchor_prim, _anchors, _append_accessor, _case,
-                    _dirichlet, _ext, _faces_from_counts, _law_id, _law_tags, _rng, _splat_prim,
-                    _tube_mesh, bend, stretch, twist)
+from .cases import (LAWS, Pose, RemapCase, _anchors, _case, _dirichlet, _faces_from_counts,
+                    _law_id, _law_tags, _rng, _tube_mesh, bend, stretch, twist)
 from .glb import (BYTE, COMPONENT_DTYPES, FLOAT, SHORT, TYPE_COMPONENTS, UNSIGNED_BYTE,
-                  UNSIGNED_SHORT, accessor_bytes, patch_accessor)
+                  UNSIGNED_SHORT, accessor_bytes, anchor_extension, anchor_primitive,
+                  anchored_primitive, append_accessor, patch_accessor)
 
 __all__ = ["encoding_cases"]
 
@@ -113,8 +113,8 @@ def _local_scale_edit(ctype: int, normalized: bool, shared: bool):
     def edit(doc, blob):
         """Store localScale as integers (shared with SCALE, or SCALE kept FLOAT with the
         dequantized values): the rest pose keeps the scales the remap uses."""
-        attrs = _splat_prim(doc)["attributes"]
-        ext = _ext(doc)
+        attrs = anchored_primitive(doc)["attributes"]
+        ext = anchor_extension(doc)
         codes, deq = _codes(accessor_bytes(doc, blob, ext["localScale"]).astype(np.float64),
                             ctype, normalized)
         if shared:   # a vertex attribute: 4-byte aligned elements, so a padded stride
@@ -124,7 +124,7 @@ def _local_scale_edit(ctype: int, normalized: bool, shared: bool):
             attrs[_SCALE] = ext["localScale"]
         else:        # anchor data only: tightly packed
             blob = patch_accessor(doc, blob, attrs[_SCALE], deq.astype(np.float32))
-            ext["localScale"], blob = _append_accessor(doc, blob, codes, ctype, "VEC3",
+            ext["localScale"], blob = append_accessor(doc, blob, codes, ctype, "VEC3",
                                                        normalized)
         return doc, blob
     return edit
@@ -135,8 +135,8 @@ def _rest_quantized_edit(rotation: int | None, scale: tuple[int, bool] | None,
     def edit(doc, blob):
         """Quantize the rest pose; for ``local``, adjust localRotation (and give localScale
         its own FLOAT accessor) so that the remap at rest still returns the stored pose."""
-        attrs = _splat_prim(doc)["attributes"]
-        ext = _ext(doc)
+        attrs = anchored_primitive(doc)["attributes"]
+        ext = anchor_extension(doc)
         local = ext["profile"] == "local"
         if rotation is not None:
             q = accessor_bytes(doc, blob, attrs[_ROTATION]).astype(np.float64)
@@ -178,8 +178,8 @@ def _field(doc: dict, blob: bytes, index: int, with_bounds: bool = False):
 def _stride_edit(doc, blob):
     """Interleave the splat attributes POSITION/ROTATION/SCALE, the anchor accessors, and the
     anchor mesh POSITION with a TEXCOORD_0, each group in one buffer view with byteStride."""
-    attrs = _splat_prim(doc)["attributes"]
-    ext = _ext(doc)
+    attrs = anchored_primitive(doc)["attributes"]
+    ext = anchor_extension(doc)
     shared = ext.get("localScale") == attrs[_SCALE]
     names = ["POSITION", _ROTATION, _SCALE]
     new, blob = _interleave(doc, blob, [_field(doc, blob, attrs[n], n == "POSITION")
@@ -193,7 +193,7 @@ def _stride_edit(doc, blob):
              if p in ext]
     new, blob = _interleave(doc, blob, [_field(doc, blob, ext[p]) for p in props])
     ext.update(zip(props, new))
-    aprim = _anchor_prim(doc)
+    aprim = anchor_primitive(doc)
     pos = aprim["attributes"]["POSITION"]
     v = accessor_bytes(doc, blob, pos).astype(np.float64)
     uv = np.stack([np.arctan2(v[:, 2], v[:, 0]) / (2 * np.pi) + 0.5, v[:, 1]], axis=1)
@@ -205,7 +205,7 @@ def _stride_edit(doc, blob):
 
 def _non_indexed_edit(doc, blob):
     """Drop the anchor primitive's indices (the mesh is a soup: indices were 0, 1, 2, ...)."""
-    aprim = _anchor_prim(doc)
+    aprim = anchor_primitive(doc)
     idx = accessor_bytes(doc, blob, aprim["indices"])[:, 0]
     assert np.array_equal(idx, np.arange(len(idx))), "the mesh of a non-indexed case is a soup"
     del aprim["indices"]
@@ -231,9 +231,9 @@ def _node_edit(variant: str):
     def edit(doc, blob):
         """Transforms on the splat node and a node instantiating the anchor mesh."""
         splat_mesh = next(i for i, mesh in enumerate(doc["meshes"])
-                          if any(p is _splat_prim(doc) for p in mesh["primitives"]))
+                          if any(p is anchored_primitive(doc) for p in mesh["primitives"]))
         node = next(n for n in doc["nodes"] if n.get("mesh") == splat_mesh)
-        anchor = {"mesh": _ext(doc)["mesh"], "name": "anchor mesh (deformation source)"}
+        anchor = {"mesh": anchor_extension(doc)["mesh"], "name": "anchor mesh (deformation source)"}
         if variant == "trs":
             node.update(translation=[0.5, -1.25, 2.0], rotation=_axis_angle((1, 2, -0.5), 70),
                         scale=[2.0, 0.5, 1.25])

@@ -27,11 +27,10 @@ from dataclasses import replace
 import numpy as np
 
 from ..model import TriangleMesh
-from .glb import accessor_bytes, patch_accessor
 from .cases import (LAWS, Pose, RemapCase, _anchors, _case, _dirichlet, _faces_from_counts,
                     _law_id, _law_tags, _local, _regular_triangles, _rng,
                     _rotation, _soup, _soup_poses, _tube_mesh, bend, stretch, twist)
-from .cases import _ext as _anchor_extension
+from .glb import accessor_bytes, anchor_extension, patch_accessor
 
 __all__ = ["rule_cases", "SCALES"]
 
@@ -251,7 +250,7 @@ def _rotation_norm_case(law: str) -> RemapCase:
 
     def off_unit(doc, blob):
         """Scale the stored FLOAT localRotation by 1 + off (writers normalize them)."""
-        ext = _anchor_extension(doc)
+        ext = anchor_extension(doc)
         q = accessor_bytes(doc, blob, ext["localRotation"]).astype(np.float64)
         return doc, patch_accessor(doc, blob, ext["localRotation"],
                                    (q * (1.0 + off)[:, None]).astype(np.float32))

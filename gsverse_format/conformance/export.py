@@ -34,6 +34,7 @@ from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatClo
                      SplatPrimitive)
 from ..remap import face_matrices, prepare_rest, remap
 from . import cases as case_defs
+from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
 
@@ -365,14 +366,14 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
 
 def _base_glb(kind: str, cache: dict, tmp: Path) -> bytes:
     if kind not in cache:
-        base = case_defs.invalid_base_case(kind)
+        base = invalid_defs.invalid_base_case(kind)
         path = tmp / f"base-{kind}.glb"
         _consistent_asset(base, path)
         cache[kind] = path.read_bytes()
     return cache[kind]
 
 
-def _export_invalid(case: case_defs.InvalidCase, case_dir: Path, cache: dict, tmp: Path) -> dict:
+def _export_invalid(case: invalid_defs.InvalidCase, case_dir: Path, cache: dict, tmp: Path) -> dict:
     doc, blob = unpack_glb(_base_glb(case.base, cache, tmp))
     doc, blob = case.mutate(doc, blob)
     _write(case_dir / "asset.glb", pack_glb(doc, blob))
@@ -464,7 +465,7 @@ def export_suite(directory: str | os.PathLike) -> dict:
         cache: dict = {}
         scratch = tmp / ".bases"
         scratch.mkdir()
-        for case in case_defs.invalid_cases():
+        for case in invalid_defs.invalid_cases():
             manifest = _export_invalid(case, tmp / "cases" / case.id, cache, scratch)
             _write(tmp / "cases" / case.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))

@@ -13,6 +13,7 @@ import struct
 import numpy as np
 
 __all__ = ["pack_glb", "unpack_glb", "BufferBuilder", "accessor_bytes", "patch_accessor",
+           "anchored_primitive", "anchor_extension", "anchor_primitive", "append_accessor",
            "COMPONENT_DTYPES", "TYPE_COMPONENTS", "BYTE", "UNSIGNED_BYTE", "SHORT",
            "UNSIGNED_SHORT", "UNSIGNED_INT", "FLOAT"]
 
@@ -122,3 +123,47 @@ def patch_accessor(doc: dict, blob: bytes, index: int, values: np.ndarray) -> by
         acc["min"] = [float(v) for v in values.astype(np.float64).min(axis=0)]
         acc["max"] = [float(v) for v in values.astype(np.float64).max(axis=0)]
     return bytes(out)
+
+
+# --------------------------------------------------------------------------- editing anchored assets
+
+_ANCHOR = "GSVERSE_gaussian_splatting_mesh_anchor"
+
+
+def anchored_primitive(doc: dict) -> dict:
+    """The (single) anchored splat primitive of ``doc``."""
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            khr = prim.get("extensions", {}).get("KHR_gaussian_splatting", {})
+            if _ANCHOR in khr.get("extensions", {}):
+                return prim
+    raise KeyError("no anchored primitive")
+
+
+def anchor_extension(doc: dict) -> dict:
+    """The anchor extension object of the (single) anchored splat primitive of ``doc``."""
+    return anchored_primitive(doc)["extensions"]["KHR_gaussian_splatting"]["extensions"][_ANCHOR]
+
+
+def anchor_primitive(doc: dict) -> dict:
+    """The anchor triangle primitive the anchored splat primitive of ``doc`` refers to."""
+    e = anchor_extension(doc)
+    return doc["meshes"][e["mesh"]]["primitives"][e.get("primitive", 0)]
+
+
+def append_accessor(doc: dict, blob: bytes, values: np.ndarray, ctype: int, gtype: str,
+                    normalized: bool = False) -> tuple[int, bytes]:
+    """Append ``values`` as a new accessor in its own buffer view at the end of ``blob``;
+    returns (accessor index, new blob)."""
+    data = np.ascontiguousarray(values, dtype=COMPONENT_DTYPES[ctype]).tobytes()
+    blob = blob + b"\0" * (-len(blob) % 4)
+    doc["bufferViews"].append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data)})
+    blob += data
+    blob += b"\0" * (-len(blob) % 4)
+    doc["buffers"][0]["byteLength"] = len(blob)
+    acc = {"bufferView": len(doc["bufferViews"]) - 1, "componentType": ctype,
+           "count": int(len(values)), "type": gtype}
+    if normalized:
+        acc["normalized"] = True
+    doc["accessors"].append(acc)
+    return len(doc["accessors"]) - 1, blob
