@@ -1007,3 +1007,16 @@ def test_composition_arcs_inside_the_folder_are_followed(tmp_path):
         warnings.simplefilter("ignore", UsdReadWarning)
         asset = read_usd(top)
     _assert_assets_equal(asset, read_usd(sub / "part.usda"))
+
+
+def test_zero_local_rotation_and_negative_scale_are_refused(tiny):
+    """Spec v1.1: readers refuse a zero localRotation and a negative local scale."""
+    path, _ = tiny
+    text = path.read_text(encoding="utf-8")
+    first = re.search(r"gsverse:anchor:localOrientations = \[(\([^)]*\))", text).group(1)
+    bad = _edit(path, f"gsverse:anchor:localOrientations = [{first}",
+                "gsverse:anchor:localOrientations = [(0, 0, 0, 0)")
+    _expect_read_error(bad, "/Asset/tiny.gsverse:anchor:localOrientations", "zero quaternion")
+    scale = re.search(r"float3\[\] scales = \[\(([^,]+),", text).group(1)
+    bad = _edit(path, f"float3[] scales = [({scale},", "float3[] scales = [(-0.5,")
+    _expect_read_error(bad, "negative")

@@ -835,6 +835,11 @@ class _Reader:
         scales = np.ones((n, 3), np.float32) if scales is None else scales
         opac = np.ones(n, np.float32) if opac is None else opac
         if not self.conformance:  # validators check the values as authored
+            negative = np.flatnonzero(np.any(scales < 0, axis=1))
+            if anchored and negative.size:   # they are the local scales unless authored apart
+                self.error(prim.GetAttribute("scales").GetPath(),
+                           f"{negative.size} splat(s) with a negative scale (splat "
+                           f"{int(negative[0])}); scales are linear, >= 0", "NEGATIVE_SCALE")
             rot, scales, opac = _unit_quaternions(rot), np.abs(scales), np.clip(opac, 0.0, 1.0)
 
         cs_attr = prim.GetAttribute(COLOR_SPACE_ATTR)
@@ -939,11 +944,21 @@ class _Reader:
                            f"is {deformation!r}, must be 'affine' or 'rigid'", "BAD_DEFORMATION")
             offsets = per_splat("gsverse:anchor:normalOffsets")
             rotations = per_splat("gsverse:anchor:localOrientations")
-            if not self.conformance:  # validators check the values as authored
-                rotations = _unit_quaternions(rotations)
             local_scales = per_splat("gsverse:anchor:localScales", required=False)
             if local_scales is None:
                 local_scales = cloud.scales
+            if not self.conformance:  # validators check the values as authored
+                zero = np.flatnonzero(~np.any(np.asarray(rotations) != 0, axis=1))
+                if zero.size:
+                    self.error(attr("gsverse:anchor:localOrientations").GetPath(),
+                               f"{zero.size} zero quaternion(s) (splat {int(zero[0])}); a "
+                               f"rotation must have non-zero length", "ZERO_ROTATION")
+                negative = np.flatnonzero(np.any(np.asarray(local_scales) < 0, axis=1))
+                if negative.size:
+                    self.error(prim.GetPath(), f"{negative.size} splat(s) with a negative local "
+                               f"scale (splat {int(negative[0])}); scales are linear, >= 0",
+                               "NEGATIVE_SCALE")
+                rotations = _unit_quaternions(rotations)
             anchors = LocalAnchors(face, bary, offsets, rotations, local_scales, deformation)
         return Anchoring(mesh, anchors)
 
