@@ -19,9 +19,10 @@ from typing import Literal, Union
 
 import numpy as np
 
-from .errors import FormatError
+from .errors import FormatError, UsageError
 
 __all__ = [
+    "check_primitive",
     "SplatCloud",
     "TriangleMesh",
     "LocalAnchors",
@@ -291,3 +292,46 @@ class SplatAsset:
 
     def splat_count(self) -> int:
         return sum(len(p.splats) for p in self.primitives)
+
+
+def _require_finite(name: str, *arrays: np.ndarray) -> None:
+    for a in arrays:
+        if not np.all(np.isfinite(a)):
+            raise UsageError(f"{name} has non-finite values (NaN or infinity)")
+
+
+def check_primitive(i: int, prim: SplatPrimitive) -> None:
+    """Raise :class:`~gsverse_format.errors.UsageError` when primitive ``i`` cannot be written:
+    no splats, non-finite values, negative scales, opacities outside [0, 1], anchors that do not
+    match the splats or the anchor mesh."""
+    label = f"primitive {i}" + (f" ({prim.name!r})" if prim.name else "")
+    c = prim.splats
+    if len(c) == 0:
+        raise UsageError(f"{label} has no splats (glTF accessors need at least one element)")
+    _require_finite(f"{label} splats", c.means, c.rotations, c.scales, c.opacities, c.sh)
+    if (c.scales < 0).any():
+        raise UsageError(f"{label} has negative scales (KHR_gaussian_splatting scales are "
+                         f"linear and non-negative)")
+    if ((c.opacities < 0) | (c.opacities > 1)).any():
+        raise UsageError(f"{label} has opacities outside [0, 1] (KHR_gaussian_splatting "
+                         f"opacities are linear, after the sigmoid)")
+    if prim.anchoring is None:
+        return
+    mesh, anchors = prim.anchoring.mesh, prim.anchoring.anchors
+    if len(anchors) != len(c):
+        raise UsageError(f"{label} has {len(anchors)} anchors for {len(c)} splats")
+    if mesh.face_count == 0:
+        raise UsageError(f"{label} is anchored to a mesh with no triangles")
+    _require_finite(f"{label} anchor mesh", mesh.vertices)
+    if mesh.faces.size and int(mesh.faces.max()) >= len(mesh.vertices):
+        raise UsageError(f"{label} anchor mesh has face indices out of range")
+    if int(anchors.face_index.max()) >= mesh.face_count:
+        raise UsageError(f"{label} has anchor face index {int(anchors.face_index.max())} out "
+                         f"of range for a mesh with {mesh.face_count} faces")
+    if isinstance(anchors, LocalAnchors):
+        _require_finite(f"{label} anchors", anchors.barycentrics, anchors.normal_offset,
+                        anchors.local_rotation, anchors.local_scale)
+    elif isinstance(anchors, GamesAnchors):
+        _require_finite(f"{label} anchors", anchors.barycentrics, anchors.rho)
+    else:
+        raise UsageError(f"{label} has anchors of unknown type {type(anchors).__name__}")

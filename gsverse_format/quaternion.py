@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "unit_quaternions",
     "normalize",
     "multiply",
     "conjugate",
@@ -119,3 +120,22 @@ def canonical_sign(q: np.ndarray) -> np.ndarray:
     """Flip quaternions so that ``w >= 0`` (q and -q are the same rotation)."""
     q = np.asarray(q, dtype=np.float64)
     return np.where(q[..., 3:4] < 0.0, -q, q)
+
+
+def unit_quaternions(q: np.ndarray) -> np.ndarray:
+    """Rows of ``q`` (x, y, z, w) as unit quaternions (float32).
+
+    Rows already unit to float32 precision (|‖q‖ − 1| ≤ 1e-6) are kept bit for bit; others are
+    divided by their norm; zero rows become the identity (0, 0, 0, 1).
+    """
+    q = np.asarray(q, dtype=np.float32)
+    norm = np.linalg.norm(q.astype(np.float64), axis=1)
+    fix = ~(np.abs(norm - 1.0) <= 1e-6)
+    if not fix.any():
+        return q
+    out = q.copy()
+    zero = fix & ~(norm > 0.0)
+    scale = np.where(norm[fix] > 0.0, norm[fix], 1.0)
+    out[fix] = (q[fix].astype(np.float64) / scale[:, None]).astype(np.float32)
+    out[zero] = (0.0, 0.0, 0.0, 1.0)
+    return out

@@ -44,7 +44,8 @@ import pygltflib
 from .. import EXTENSION_NAME, __version__
 from ..atomic import atomic_write
 from ..errors import FormatError, GsverseError, UsageError
-from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
+from ..quaternion import unit_quaternions
+from ..model import (Anchoring, check_primitive, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                      SplatPrimitive, TriangleMesh)
 
 __all__ = ["write_gltf", "read_gltf", "asset_to_gltf", "gltf_to_bytes", "KHR", "ANCHOR",
@@ -129,25 +130,6 @@ def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
-def _unit_quaternions(q: np.ndarray) -> np.ndarray:
-    """Rows of ``q`` (x, y, z, w) as unit quaternions (float32).
-
-    Rows already unit to float32 precision (|‖q‖ − 1| ≤ 1e-6) are kept bit for bit; others are
-    divided by their norm; zero rows become the identity (0, 0, 0, 1).
-    """
-    q = np.asarray(q, dtype=np.float32)
-    norm = np.linalg.norm(q.astype(np.float64), axis=1)
-    fix = ~(np.abs(norm - 1.0) <= 1e-6)
-    if not fix.any():
-        return q
-    out = q.copy()
-    zero = fix & ~(norm > 0.0)
-    scale = np.where(norm[fix] > 0.0, norm[fix], 1.0)
-    out[fix] = (q[fix].astype(np.float64) / scale[:, None]).astype(np.float32)
-    out[zero] = (0.0, 0.0, 0.0, 1.0)
-    return out
-
-
 def _fallback_color(cloud: SplatCloud) -> np.ndarray:
     """``COLOR_0`` fallback, (N, 4) uint8: linear RGB of the SH DC term and opacity as alpha."""
     rgb = np.clip(0.5 + SH_C0 * cloud.sh[:, 0, :].astype(np.float64), 0.0, 1.0)
@@ -196,46 +178,6 @@ def _check_quantize(quantize: dict | None) -> dict[str, tuple[int, float] | None
     return chosen
 
 
-def _require_finite(name: str, *arrays: np.ndarray) -> None:
-    for a in arrays:
-        if not np.all(np.isfinite(a)):
-            raise UsageError(f"{name} has non-finite values (NaN or infinity)")
-
-
-def _check_primitive(i: int, prim: SplatPrimitive) -> None:
-    label = f"primitive {i}" + (f" ({prim.name!r})" if prim.name else "")
-    c = prim.splats
-    if len(c) == 0:
-        raise UsageError(f"{label} has no splats (glTF accessors need at least one element)")
-    _require_finite(f"{label} splats", c.means, c.rotations, c.scales, c.opacities, c.sh)
-    if (c.scales < 0).any():
-        raise UsageError(f"{label} has negative scales (KHR_gaussian_splatting scales are "
-                         f"linear and non-negative)")
-    if ((c.opacities < 0) | (c.opacities > 1)).any():
-        raise UsageError(f"{label} has opacities outside [0, 1] (KHR_gaussian_splatting "
-                         f"opacities are linear, after the sigmoid)")
-    if prim.anchoring is None:
-        return
-    mesh, anchors = prim.anchoring.mesh, prim.anchoring.anchors
-    if len(anchors) != len(c):
-        raise UsageError(f"{label} has {len(anchors)} anchors for {len(c)} splats")
-    if mesh.face_count == 0:
-        raise UsageError(f"{label} is anchored to a mesh with no triangles")
-    _require_finite(f"{label} anchor mesh", mesh.vertices)
-    if mesh.faces.size and int(mesh.faces.max()) >= len(mesh.vertices):
-        raise UsageError(f"{label} anchor mesh has face indices out of range")
-    if int(anchors.face_index.max()) >= mesh.face_count:
-        raise UsageError(f"{label} has anchor face index {int(anchors.face_index.max())} out "
-                         f"of range for a mesh with {mesh.face_count} faces")
-    if isinstance(anchors, LocalAnchors):
-        _require_finite(f"{label} anchors", anchors.barycentrics, anchors.normal_offset,
-                        anchors.local_rotation, anchors.local_scale)
-    elif isinstance(anchors, GamesAnchors):
-        _require_finite(f"{label} anchors", anchors.barycentrics, anchors.rho)
-    else:
-        raise UsageError(f"{label} has anchors of unknown type {type(anchors).__name__}")
-
-
 @dataclass
 class _EncodedAnchors:
     """Anchor data as the writer stores them: normalized-integer codes for the quantized
@@ -259,13 +201,13 @@ def _encode_anchors(anchors: LocalAnchors | GamesAnchors,
         out.barycentrics = (codes, ctype)
         bary = (codes.astype(np.float32) / np.float32(top)).astype(np.float32)
     if isinstance(anchors, LocalAnchors):
-        rot = _unit_quaternions(anchors.local_rotation)
+        rot = unit_quaternions(anchors.local_rotation)
         q = quant.get("localRotation")
         if q is not None:
             ctype, top = q
             codes = np.clip(np.round(rot.astype(np.float64) * top), -top, top)
             out.local_rotation = (codes, ctype)
-            rot = _unit_quaternions(np.maximum(codes / top, -1.0).astype(np.float32))
+            rot = unit_quaternions(np.maximum(codes / top, -1.0).astype(np.float32))
         out.anchors = LocalAnchors(anchors.face_index, bary, anchors.normal_offset, rot,
                                    anchors.local_scale, anchors.deformation)
     else:
@@ -332,7 +274,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     quant = _check_quantize(quantize)
     prims = list(asset.primitives)
     for i, prim in enumerate(prims):
-        _check_primitive(i, prim)
+        check_primitive(i, prim)
 
     # Anchor meshes are appended after the splat meshes, one per distinct TriangleMesh object.
     anchor_mesh_index: dict[int, int] = {}
@@ -353,7 +295,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
             c = _rest_pose_of(prim, encoded)
         attrs: dict[str, int] = {"POSITION": b.add(c.means, FLOAT, "VEC3", target=ARRAY_BUFFER,
                                                    minmax=True)}
-        attrs[ROTATION] = b.add(_unit_quaternions(c.rotations), FLOAT, "VEC4", target=ARRAY_BUFFER)
+        attrs[ROTATION] = b.add(unit_quaternions(c.rotations), FLOAT, "VEC4", target=ARRAY_BUFFER)
         attrs[SCALE] = b.add(c.scales, FLOAT, "VEC3", target=ARRAY_BUFFER)
         attrs[OPACITY] = b.add(c.opacities, FLOAT, "SCALAR", target=ARRAY_BUFFER)
         for k in range(c.sh.shape[1]):

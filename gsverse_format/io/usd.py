@@ -289,16 +289,16 @@ def load_poses(path: str | os.PathLike) -> BakedPoses:
 
 
 def _unit_quaternions(q: np.ndarray) -> np.ndarray:
-    from .gltf import _unit_quaternions as unit
+    from ..quaternion import unit_quaternions as unit
 
     return unit(q)
 
 
 def _check_asset(asset: SplatAsset) -> None:
-    from .gltf import _check_primitive
+    from ..model import check_primitive
 
     for i, prim in enumerate(asset.primitives):
-        _check_primitive(i, prim)
+        check_primitive(i, prim)
         if prim.anchoring is not None:
             mesh = prim.anchoring.mesh
             if mesh.face_count > _INT32_MAX or len(mesh.vertices) > _INT32_MAX:
