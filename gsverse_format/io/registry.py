@@ -11,6 +11,9 @@ from __future__ import annotations
 import os
 from typing import Iterable
 
+from dataclasses import dataclass
+from typing import Any, Callable
+
 from ..errors import UsageError
 from ..model import SplatAsset, SplatCloud, SplatPrimitive
 from ..transform import PLY_TO_GLTF, rotate_splats
@@ -18,6 +21,32 @@ from .usd import USD_SUFFIXES  # pxr itself is imported only when a USD file is 
 
 SPLAT_INPUTS = (".ply", ".glb", ".gltf") + USD_SUFFIXES
 SPLAT_OUTPUTS = (".glb", ".gltf", ".ply") + USD_SUFFIXES
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """A registered splat-asset format: ``read(path) -> SplatAsset`` in the file's own
+    coordinate frame, ``write(asset, path, *, protect=(), **options)``; ``frame`` is that
+    frame: ``"gltf"`` (+Y up) or ``"3dgs"`` (the 3DGS capture frame, +Y down)."""
+
+    name: str
+    suffixes: tuple[str, ...]
+    read: Callable[..., SplatAsset] | None = None
+    write: Callable[..., Any] | None = None
+    frame: str = "gltf"
+
+
+#: suffix (lower case, with the dot) -> format; filled by :func:`register_format`.
+FORMATS: dict[str, FileFormat] = {}
+
+
+def register_format(name: str, suffixes: tuple[str, ...], *,
+                    read: Callable[..., SplatAsset] | None = None,
+                    write: Callable[..., Any] | None = None, frame: str = "gltf") -> None:
+    """Register a format under its file suffixes (each format package calls this once)."""
+    fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame)
+    for suffix in fmt.suffixes:
+        FORMATS[suffix] = fmt
 
 
 def _ext(path: str | os.PathLike) -> str:
