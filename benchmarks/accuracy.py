@@ -53,7 +53,7 @@ from gsverse_format import quaternion as quat
 from gsverse_format.binding import bind_local
 from gsverse_format.model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap import remap as reference_remap
+from gsverse_format.remap_reference import remap as reference_remap
 from gsverse_format.remap_fast import FastRemapper
 
 from .timing import measure

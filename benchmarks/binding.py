@@ -143,7 +143,7 @@ def _compile_from_scratch() -> float | None:
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
         code = ("import time; t = time.perf_counter(); "
-                "from gsverse_format import nearest_fast; nearest_fast.warm_up(); "
+                "from gsverse_format import nearest_compiled; nearest_compiled.warm_up(); "
                 "print(time.perf_counter() - t)")
         try:
             out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
@@ -199,17 +199,17 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     import numba
 
-    from gsverse_format import nearest_fast
+    from gsverse_format import nearest_compiled
     from gsverse_format.nearest import nearest_triangles
-    nearest_fast.warm_up()
+    nearest_compiled.warm_up()
     first_call = time.perf_counter() - t0
     threads = numba.get_num_threads()
     idx = np.arange(len(f))
     state: dict = {}
     timed = {
         "full": lambda: state.__setitem__("ref", nearest_triangles(p, v, f, method="numba")),
-        "build": lambda: state.__setitem__("tree", nearest_fast.build_tree(v, f, idx)),
-        "query": lambda: nearest_fast.query_tree(state["tree"], p),
+        "build": lambda: state.__setitem__("tree", nearest_compiled.build_tree(v, f, idx)),
+        "query": lambda: nearest_compiled.query_tree(state["tree"], p),
     }
     o3d = None
     try:

@@ -5,7 +5,7 @@ PLY (``--quick``: 20k splats, ~6k faces; full: 500k splats, ~41k faces). Timed:
 
 * ``gsverse-convert splats.ply out.glb --mesh mesh.ply`` as a fresh process (interpreter start,
   imports, reading, binding, writing), with its peak resident memory;
-* the same conversion in-process (:func:`gsverse_format.convert.convert`, imports done);
+* the same conversion in-process (:func:`gsverse_format.pipeline.convert`, imports done);
 * reading the input PLY, reading the mesh and writing the converted asset's GLB, each alone
   (in-process), and all three together in a fresh process with its peak resident memory.
 
@@ -77,7 +77,7 @@ def run_process(args: list[str], cwd: str | None = None, env: dict | None = None
 
 
 def run(quick: bool = False, log=print, workdir: str | None = None) -> dict:
-    from gsverse_format.convert import ConvertOptions, convert
+    from gsverse_format.pipeline import ConvertOptions, convert
     from gsverse_format.io.gltf import read_gltf, write_gltf
     from gsverse_format.io.mesh import read_mesh
     from gsverse_format.io.ply import read_splat_ply, write_splat_ply

@@ -1,42 +1,56 @@
 """What every source loader takes and returns.
 
-A loader (``gsverse_format.converters.<source>.load``) reads one tool's output and returns the
-splats' rest pose, the anchor mesh and — where the source defines the binding exactly, as SuGaR
-and GaMeS do — the anchors. Everything is returned in the glTF frame (+Y up, right-handed).
-The conversion pipeline (:mod:`gsverse_format.convert`) then decimates, binds what has no
-anchors yet by nearest triangle, separates splats too far from the mesh, and writes.
+A loader (``load`` of a module in :mod:`gsverse_format.converters`, found through
+:mod:`gsverse_format.converters.registry`) reads one tool's output and returns the splats' rest
+pose, the anchor mesh (or none: the pipeline then reconstructs one from the splats) and — where
+the source defines the binding exactly, as SuGaR and GaMeS do — the anchors.
+
+Loaders do not change coordinate frames on their own: they return splats and mesh in one
+common frame of the source and name it in :attr:`SourceResult.frame` (a key of
+:data:`gsverse_format.io.registry.FRAMES`). The conversion pipeline
+(:mod:`gsverse_format.pipeline`) rotates the result into the glTF frame once, then decimates,
+binds what has no anchors yet by nearest triangle, separates splats too far from the mesh, and
+writes. (Anchors are relative to their triangles, so the rotation leaves them unchanged.)
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any, Literal
 
-from ..model import Anchors, SplatCloud, TriangleMesh
+from gsverse_format.model import Anchors, SplatCloud, TriangleMesh
+
+__all__ = ["SourceOptions", "SourceResult", "TrellisFrame"]
+
+#: Which rotation takes a TRELLIS PLY into the frame of the GLB of the same run.
+TrellisFrame = Literal["current", "legacy", "none"]
 
 
 @dataclass
 class SourceOptions:
-    """Options a loader may use (command-line flags map one to one).
+    """Options a loader may use (the pipeline fills them from the command-line flags).
 
-    * ``frame_change`` — rotate from the source's frame into glTF's (default on).
-    * ``legacy_frame`` — TRELLIS PLYs saved before 2024-12-18 (no export rotation).
-    * ``faces`` — target face count when a loader builds or decimates the anchor mesh.
     * ``pt_path`` — a PyTorch checkpoint (SuGaR refined ``.pt``, GaMeS ``model_params.pt``).
     * ``k`` — splats per face, overriding detection (SuGaR, GaMeS).
+    * ``trellis_frame`` — the frame of a TRELLIS PLY relative to its GLB: ``"current"``
+      (TRELLIS's export rotation since 2024-12-18), ``"legacy"`` (PLYs saved before it,
+      ``--legacy-trellis-frame``) or ``"none"`` (already in the GLB's frame,
+      ``--no-frame-change``).
     """
 
-    frame_change: bool = True
-    legacy_frame: bool = False
-    faces: int | None = None
     pt_path: str | None = None
     k: int | None = None
+    trellis_frame: TrellisFrame = "current"
 
 
 @dataclass
 class SourceResult:
-    """A loaded source: rest-pose splats, anchor mesh, optional exact anchors, remarks."""
+    """A loaded source: rest-pose splats, anchor mesh (None: reconstruct one from the splats),
+    optional exact anchors, remarks, measurements, and the coordinate frame all of it is in
+    (a key of :data:`gsverse_format.io.registry.FRAMES`)."""
 
     splats: SplatCloud
     mesh: TriangleMesh | None
     anchors: Anchors | None = None
     notes: list[str] = field(default_factory=list)
-    check: dict = field(default_factory=dict)
+    check: dict[str, Any] = field(default_factory=dict)
+    frame: str = "gltf"

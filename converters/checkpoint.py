@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import os
 import pickle
+import struct
 import types
+import zipfile
 
 import numpy as np
 
-from ..errors import FormatError, GsverseError
+from gsverse_format.errors import FormatError, GsverseError
 
 __all__ = ["load_torch_checkpoint", "as_array"]
 
@@ -85,6 +87,11 @@ def _pickle_load(file, **kwargs):
     return _Unpickler(file, **kwargs).load()
 
 
+#: What ``torch.load`` raises for a truncated, corrupt or foreign file (zip container, pickle
+#: stream, storage records); anything else is a bug and propagates.
+_BAD_FILE = (pickle.UnpicklingError, RuntimeError, EOFError, ValueError, OSError, KeyError,
+             IndexError, struct.error, zipfile.BadZipFile)
+
 _SAFE_PICKLE = types.SimpleNamespace(__name__="pickle", Unpickler=_Unpickler, load=_pickle_load)
 
 
@@ -106,7 +113,7 @@ def load_torch_checkpoint(path: str | os.PathLike):
         return torch.load(path, map_location="cpu", weights_only=False, pickle_module=_SAFE_PICKLE)
     except GsverseError:
         raise
-    except Exception as exc:  # torch/pickle raise many types for bad files
+    except _BAD_FILE as exc:  # what torch's zip reader and pickle raise for bad files
         raise FormatError(f"cannot read PyTorch checkpoint: {type(exc).__name__}: {exc}"
                           .splitlines()[0], path) from None
 

@@ -19,9 +19,10 @@ Frames
 ------
 GaMeS's NeRF-synthetic reader maps ``mesh.obj`` vertices (x, y, z) → (x, −z, y) before training
 (Blender's Z-up world); its COLMAP multi-mesh reader uses the OBJ as is. The loader finds out
-which by comparing α·triangles with the PLY means under both maps, and then rotates into glTF:
-(x, y, z) → (x, z, −y) for the Z-up case (so the mesh comes back as the OBJ holds it), 180° about
-+Z for COLMAP (as for any 3DGS PLY). The splats' SH are rotated with them.
+which by comparing α·triangles with the PLY means under both maps, and returns everything in
+that training frame, naming it: ``"z-up"`` for the NeRF-synthetic case (the pipeline rotates it
+into glTF by (x, y, z) → (x, z, −y), so the mesh comes back as the OBJ holds it), ``"3dgs"`` for
+COLMAP (180° about +Z, as for any 3DGS PLY). The splats' SH are rotated with them.
 
 The rest pose returned is the ``games`` remap at the rest mesh (opacity and SH from the PLY), so
 that it agrees with the anchors by construction; ``check`` reports how far it is from the PLY's
@@ -37,32 +38,31 @@ import re
 
 import numpy as np
 
-from ..errors import FormatError
-from ..frames import GAMES_EPS, degenerate_mask
-from ..io.mesh import read_mesh
-from ..io.ply import read_splat_ply
-from ..model import Anchoring, GamesAnchors, SplatCloud, TriangleMesh
-from ..remap import remap
-from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
-from .base import SourceOptions, SourceResult
-from .checkpoint import as_array, load_torch_checkpoint
-from .sugar import mean_tolerance
+from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.checkpoint import as_array, load_torch_checkpoint
+from gsverse_format.converters.registry import register_source
+from gsverse_format.errors import FormatError
+from gsverse_format.frames import GAMES_EPS, degenerate_mask
+from gsverse_format.io.mesh import read_mesh
+from gsverse_format.io.ply import read_splat_ply
+from gsverse_format.io.registry import FRAMES, Z_UP_TO_GLTF
+from gsverse_format.model import Anchoring, GamesAnchors, SplatCloud, TriangleMesh
+from gsverse_format.remap_reference import RemapResult, remap
+from gsverse_format.tolerances import mesh_extent, rest_mean_tolerance
+from gsverse_format.transform import rotate_mesh, rotate_splats
 
-__all__ = ["load", "normalize_alpha", "BLENDER_MESH_TO_TRAINING", "Z_UP_TO_GLTF"]
+__all__ = ["load", "detect", "normalize_alpha", "BLENDER_MESH_TO_TRAINING", "Z_UP_TO_GLTF"]
 
 #: GaMeS's NeRF-synthetic reader: mesh.obj (x, y, z) -> training frame (x, −z, y).
 BLENDER_MESH_TO_TRAINING = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-#: Z-up scene (Blender world) -> glTF +Y up: (x, y, z) -> (x, z, −y).
-Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
+#: GaMeS frame -> (mesh.obj -> training frame, description, the training frame's name in
+#: :data:`gsverse_format.io.registry.FRAMES`).
 _FRAMES = {
-    "colmap": (np.eye(3), "COLMAP (mesh used as is)"),
+    "colmap": (np.eye(3), "COLMAP (mesh used as is)", "3dgs"),
     "blender": (BLENDER_MESH_TO_TRAINING,
-                "NeRF-synthetic/Blender (GaMeS maps mesh.obj (x, y, z) to (x, -z, y), Z up)"),
-}
-_TO_GLTF = {
-    "colmap": (PLY_TO_GLTF, "rotated 180 degrees about Z into glTF (+Y up), as for 3DGS PLYs"),
-    "blender": (Z_UP_TO_GLTF, "Z-up scene rotated into glTF (+Y up) by (x, y, z) -> (x, z, -y)"),
+                "NeRF-synthetic/Blender (GaMeS maps mesh.obj (x, y, z) to (x, -z, y), Z up)",
+                "z-up"),
 }
 _MESH_FIX = ("pass the mesh GaMeS was trained with (--mesh <dataset>/mesh.obj for NeRF-synthetic "
              "scenes, <dataset>/sparse/0/<name>.obj for COLMAP ones)")
@@ -106,7 +106,7 @@ def _locate(input_path: str) -> tuple[str, list[str], list[str]]:
         folders = [os.path.dirname(os.path.abspath(ply))]
     else:
         raise FormatError("file not found", input_path)
-    unique = []
+    unique: list[str] = []
     for folder in folders:
         if os.path.abspath(folder) not in [os.path.abspath(u) for u in unique]:
             unique.append(folder)
@@ -219,7 +219,7 @@ def _layout(params: _Params, n_ply: int, f_mesh: int, options: SourceOptions, pl
                               "divide it; set --k (GaMeS's --num_splats)", path)
         blocks = [a.reshape(-1, k, 3)]
     faces_total = 0
-    face_index, alphas, ks = [], [], []
+    face_blocks, alphas, ks = [], [], []
     for a in blocks:
         if a.ndim != 3 or a.shape[2] != 3:
             raise FormatError(f"_alpha has shape {a.shape}, expected (faces, k, 3)", path)
@@ -227,36 +227,37 @@ def _layout(params: _Params, n_ply: int, f_mesh: int, options: SourceOptions, pl
         if options.k is not None and k != options.k:
             raise FormatError(f"_alpha holds {k} splats per face, not --k {options.k}; drop --k "
                               "or pass the parameters of the matching run", path)
-        face_index.append(np.repeat(np.arange(faces_total, faces_total + f, dtype=np.int64), k))
+        face_blocks.append(np.repeat(np.arange(faces_total, faces_total + f, dtype=np.int64), k))
         alphas.append(a.reshape(-1, 3))
         ks.append(k)
         faces_total += f
-    face = np.concatenate(face_index) if face_index else np.zeros(0, np.int64)
+    face_index = np.concatenate(face_blocks) if face_blocks else np.zeros(0, np.int64)
     raw = np.concatenate(alphas) if alphas else np.zeros((0, 3))
     if not np.all(np.isfinite(raw)) or not np.all(np.isfinite(params.scale)):
         raise FormatError("_alpha or _scale holds NaN or Inf", path)
     if faces_total != f_mesh:
         raise FormatError(f"model parameters describe {faces_total} faces but the mesh has "
                           f"{f_mesh}: not the mesh of this run; " + _MESH_FIX, mesh_name)
-    if len(face) != n_ply:
+    if len(face_index) != n_ply:
         raise FormatError(f"the PLY has {n_ply} splats but the model parameters describe "
-                          f"{len(face)} ({faces_total} faces × {'/'.join(map(str, sorted(set(ks))))}"
+                          f"{len(face_index)} ({faces_total} faces × "
+                          f"{'/'.join(map(str, sorted(set(ks))))}"
                           "); they come from different runs or iterations: use the "
                           "model_params saved beside this point_cloud.ply", ply)
     if params.scale.size != n_ply:
         raise FormatError(f"_scale has {params.scale.size} values for {n_ply} splats", path)
-    return face, normalize_alpha(raw), ks
+    return face_index, normalize_alpha(raw), ks
 
 
 # --------------------------------------------------------------------------------------------
 # Loader
 
 
-def _mean_error(alpha: np.ndarray, face: np.ndarray, mesh: TriangleMesh, rotation: np.ndarray,
-                means: np.ndarray) -> float:
+def _mean_error(alpha: np.ndarray, face_index: np.ndarray, mesh: TriangleMesh,
+                rotation: np.ndarray, means: np.ndarray) -> float:
     tri = mesh.triangles() @ np.asarray(rotation, np.float64).T
-    mu = np.einsum("nm,nmx->nx", alpha, tri[face])
-    return float(np.max(np.linalg.norm(mu - means, axis=1))) if len(face) else 0.0
+    mu = np.einsum("nm,nmx->nx", alpha, tri[face_index])
+    return float(np.max(np.linalg.norm(mu - means, axis=1))) if len(face_index) else 0.0
 
 
 def _diagonal(mesh: TriangleMesh) -> float:
@@ -264,20 +265,24 @@ def _diagonal(mesh: TriangleMesh) -> float:
     return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0))) if len(v) else 0.0
 
 
-def _detect_frame(alpha, face, mesh, cloud, params: _Params, mesh_name: str, ply: str):
+def _detect_frame(alpha: np.ndarray, face_index: np.ndarray, mesh: TriangleMesh,
+                  cloud: SplatCloud, params: _Params, mesh_name: str,
+                  ply: str) -> tuple[str, dict[str, float]]:
     """(frame name, {frame: max mean error}) — the frame whose α·triangles give the PLY means."""
     means = cloud.means.astype(np.float64)
-    tol = mean_tolerance(mesh)
+    tol = rest_mean_tolerance(*mesh_extent(mesh))
     if params.mesh is not None:  # trained vertices from the .pt: already in the training frame
-        err = _mean_error(alpha, face, mesh, np.eye(3), means)
+        assert params.frame is not None
+        err = _mean_error(alpha, face_index, mesh, np.eye(3), means)
         if err > tol:
             raise FormatError(f"α·triangles of the checkpoint's vertices miss the PLY means by up "
                               f"to {err:.3g} ({err / max(_diagonal(mesh), 1e-300):.2g} of the mesh "
                               "diagonal): the PLY and model_params.pt come from different "
                               "iterations; use the pair saved together", ply)
         return params.frame, {params.frame: err}
-    errors = {name: _mean_error(alpha, face, mesh, rot, means) for name, (rot, _) in _FRAMES.items()}
-    best = min(errors, key=errors.get)
+    errors = {name: _mean_error(alpha, face_index, mesh, rot, means)
+              for name, (rot, _, _) in _FRAMES.items()}
+    best = min(errors, key=errors.__getitem__)
     if errors[best] > tol:
         d = max(_diagonal(mesh), 1e-300)
         listed = ", ".join(f"{errors[k]:.3g} ({errors[k] / d:.2g} of the diagonal) {k}"
@@ -290,14 +295,20 @@ def _detect_frame(alpha, face, mesh, cloud, params: _Params, mesh_name: str, ply
     return best, errors
 
 
-def _compare(rest, cloud: SplatCloud, diagonal: float) -> dict:
+def _compare(rest: RemapResult, cloud: SplatCloud, diagonal: float,
+             to_gltf: np.ndarray) -> dict[str, float]:
+    """How far the rebuilt rest pose lies from the PLY's splats, measured in the glTF frame
+    (where the written file holds them): ``to_gltf`` takes the training frame there."""
+    r = np.asarray(to_gltf, np.float64)
+    means, covariances = rest.means @ r.T, r @ rest.covariances @ r.T
+    cloud = rotate_splats(cloud, r)
     if len(cloud) == 0:
         return {"max_mean_error": 0.0, "max_mean_error_rel": 0.0, "max_mean_error_rel_splat": 0.0,
                 "max_cov_rel_error": 0.0}
-    err = np.linalg.norm(rest.means - cloud.means.astype(np.float64), axis=1)
+    err = np.linalg.norm(means - cloud.means.astype(np.float64), axis=1)
     size = np.max(cloud.scales.astype(np.float64), axis=1)
     ref = cloud.covariances()
-    num = np.linalg.norm(rest.covariances - ref, axis=(1, 2))
+    num = np.linalg.norm(covariances - ref, axis=(1, 2))
     den = np.linalg.norm(ref, axis=(1, 2))
     cov = num / np.where(den > 0.0, den, 1.0)
     return {"max_mean_error": float(err.max()),
@@ -339,20 +350,16 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
                               "trained on; " + _MESH_FIX, ply)
         mesh = read_mesh(mesh_name)
 
-    face, alpha, ks = _layout(params, len(cloud), mesh.face_count, options, ply, mesh_name)
-    frame, frame_errors = _detect_frame(alpha, face, mesh, cloud, params, mesh_name, ply)
+    face_index, alpha, ks = _layout(params, len(cloud), mesh.face_count, options, ply, mesh_name)
+    frame, frame_errors = _detect_frame(alpha, face_index, mesh, cloud, params, mesh_name, ply)
     k_text = "/".join(map(str, sorted(set(ks)))) or "0"
     notes.append(f"GaMeS binding: {k_text} splat(s) per face on {mesh.face_count} faces; "
                  f"frame {_FRAMES[frame][1]}")
 
-    to_training = np.eye(3) if params.mesh is not None else _FRAMES[frame][0]
-    to_gltf = _TO_GLTF[frame][0] if options.frame_change else np.eye(3)
-    mesh = rotate_mesh(mesh, to_gltf @ to_training)
-    if options.frame_change:
-        cloud = rotate_splats(cloud, to_gltf)
-        notes.append(_TO_GLTF[frame][1])
+    if params.mesh is None:   # mesh.obj -> the training frame of the PLY
+        mesh = rotate_mesh(mesh, _FRAMES[frame][0])
 
-    anchors = GamesAnchors(face.astype(np.uint32), alpha[:, 1:], params.scale)
+    anchors = GamesAnchors(face_index.astype(np.uint32), alpha[:, 1:], params.scale)
     rest = remap(Anchoring(mesh, anchors))
     splats = SplatCloud(rest.means, rest.rotations, rest.scales, cloud.opacities, cloud.sh,
                         cloud.color_space, dict(cloud.extra))
@@ -362,11 +369,26 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     check = {"frame": frame, "k": ks[0] if len(set(ks)) == 1 else ks, "faces": mesh.face_count,
              "mesh_diagonal": diagonal, "frame_mean_errors": frame_errors,
              "degenerate_faces": degenerate}
-    check.update(_compare(rest, cloud, diagonal))
+    check.update(_compare(rest, cloud, diagonal, FRAMES[_FRAMES[frame][2]].to_gltf))
     notes.append(f"rest pose rebuilt from the mesh: PLY means reproduced within "
                  f"{check['max_mean_error']:.2g} ({check['max_mean_error_rel']:.2g} of the mesh "
                  f"diagonal), covariances within {check['max_cov_rel_error']:.2g} (relative)")
     if degenerate:
         notes.append(f"{degenerate} face(s) of the mesh are degenerate; their splats follow the "
                      "spec's fallback frame")
-    return SourceResult(splats, mesh, anchors, notes, check)
+    return SourceResult(splats, mesh, anchors, notes, check, frame=_FRAMES[frame][2])
+
+
+def detect(input_path: str, mesh_path: str | None) -> str | None:
+    """A folder, or a PLY with GaMeS's model_params beside it."""
+    if os.path.isdir(input_path):
+        return "input is a folder (GaMeS / GS-Verse output)"
+    folder = os.path.dirname(os.path.abspath(input_path))
+    beside = ("model_params.json", "model_params.pt")
+    if os.path.splitext(input_path)[1].lower() == ".ply" and any(
+            os.path.isfile(os.path.join(folder, name)) for name in beside):
+        return "model_params.json/.pt beside the PLY (GaMeS / GS-Verse)"
+    return None
+
+
+register_source("games", load, detect=detect, priority=10)

@@ -1,8 +1,8 @@
 """``KHR_gaussian_splatting`` glTF (.glb/.gltf) as the splat input.
 
 Every ``KHR_gaussian_splatting`` primitive of the file is read (:func:`gsverse_format.io.gltf.
-read_gltf`); positions are in the asset's local space, which is already the glTF frame, so no
-frame change is applied (``frame_change`` has no effect here).
+read_gltf`); positions are in the asset's local space, which is already the glTF frame (the
+result's ``frame`` is ``"gltf"``: the pipeline applies no frame change).
 
 * With ``--mesh``: the splats of all primitives are concatenated in file order (SH padded to
   the highest degree) and returned with the mesh (:func:`gsverse_format.io.mesh.read_mesh`,
@@ -17,34 +17,39 @@ frame change is applied (``frame_change`` has no effect here).
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
-from ..errors import FormatError
-from ..io.gltf import read_gltf
-from ..io.mesh import read_mesh
-from ..model import GamesAnchors, LocalAnchors, SplatCloud, SplatPrimitive
-from .base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.registry import register_source
+from gsverse_format.errors import FormatError
+from gsverse_format.io.gltf import read_gltf
+from gsverse_format.io.mesh import read_mesh
+from gsverse_format.model import Anchors, GamesAnchors, LocalAnchors, SplatCloud, SplatPrimitive
 
-__all__ = ["load"]
-
-
-def _compatible(a, b) -> bool:
-    if type(a) is not type(b):
-        return False
-    return not isinstance(a, LocalAnchors) or a.deformation == b.deformation
+__all__ = ["load", "detect"]
 
 
-def _concat_anchors(items: list):
-    first = items[0]
-    if isinstance(first, LocalAnchors):
-        return LocalAnchors(np.concatenate([a.face_index for a in items]),
-                            np.concatenate([a.barycentrics for a in items]),
-                            np.concatenate([a.normal_offset for a in items]),
-                            np.concatenate([a.local_rotation for a in items]),
-                            np.concatenate([a.local_scale for a in items]), first.deformation)
-    return GamesAnchors(np.concatenate([a.face_index for a in items]),
-                        np.concatenate([a.barycentrics for a in items]),
-                        np.concatenate([a.rho for a in items]))
+def _compatible(a: Anchors, b: Anchors) -> bool:
+    if isinstance(a, LocalAnchors) and isinstance(b, LocalAnchors):
+        return a.deformation == b.deformation
+    return isinstance(a, GamesAnchors) and isinstance(b, GamesAnchors)
+
+
+def _concat_anchors(items: list[Anchors]) -> Anchors:
+    """One anchor set from compatible ones (:func:`_compatible`), in order."""
+    local = [a for a in items if isinstance(a, LocalAnchors)]
+    if local:
+        return LocalAnchors(np.concatenate([a.face_index for a in local]),
+                            np.concatenate([a.barycentrics for a in local]),
+                            np.concatenate([a.normal_offset for a in local]),
+                            np.concatenate([a.local_rotation for a in local]),
+                            np.concatenate([a.local_scale for a in local]), local[0].deformation)
+    games = [a for a in items if isinstance(a, GamesAnchors)]
+    return GamesAnchors(np.concatenate([a.face_index for a in games]),
+                        np.concatenate([a.barycentrics for a in games]),
+                        np.concatenate([a.rho for a in games]))
 
 
 def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
@@ -62,17 +67,18 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
             notes.append(f"{len(prims)} splat primitives joined ({total} splats)")
         if asset.anchored:
             notes.append("the file's own anchoring is ignored: splats are bound to --mesh")
-        return SourceResult(splats, mesh, None, notes, {"primitives": len(prims)})
+        return SourceResult(splats, mesh, None, notes, {"primitives": len(prims)}, frame="gltf")
 
     anchored = asset.anchored
     if not anchored:
         raise FormatError("the file has no anchored primitive and no mesh was given: pass the "
                           "anchor mesh with --mesh", input_path)
-    first = anchored[0].anchoring
-    chosen = [p for p in anchored if p.anchoring.mesh is first.mesh
-              and _compatible(p.anchoring.anchors, first.anchors)]
-    splats = SplatCloud.concatenate([p.splats for p in chosen])
-    anchors = _concat_anchors([p.anchoring.anchors for p in chosen])
+    pairs = [(p, p.anchoring) for p in anchored if p.anchoring is not None]
+    first = pairs[0][1]
+    chosen = [(p, a) for p, a in pairs
+              if a.mesh is first.mesh and _compatible(a.anchors, first.anchors)]
+    splats = SplatCloud.concatenate([p.splats for p, _ in chosen])
+    anchors = _concat_anchors([a.anchors for _, a in chosen])
     left = total - len(splats)
     if left:
         notes.append(f"{left} splats of {len(prims) - len(chosen)} primitive(s) not anchored to "
@@ -81,4 +87,14 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     notes.append(f"kept the file's {anchors.profile} anchoring of {len(splats)} splats "
                  f"({len(chosen)} primitive(s))")
     check = {"primitives": len(prims), "primitives_used": len(chosen), "splats_left_out": left}
-    return SourceResult(splats, first.mesh, anchors, notes, check)
+    return SourceResult(splats, first.mesh, anchors, notes, check, frame="gltf")
+
+
+def detect(input_path: str, mesh_path: str | None) -> str | None:
+    """A .glb/.gltf input is KHR_gaussian_splatting splats."""
+    if os.path.splitext(input_path)[1].lower() in (".glb", ".gltf"):
+        return "input is a glTF file (KHR_gaussian_splatting)"
+    return None
+
+
+register_source("khr", load, detect=detect, priority=20)

@@ -1,7 +1,8 @@
-"""A 3DGS PLY without a mesh: an anchor mesh reconstructed from the splats themselves.
+"""An anchor mesh reconstructed from the splats themselves (a 3DGS PLY given without a mesh).
 
-:func:`load` reads the PLY (rotated into the glTF frame unless ``frame_change`` is off) and
-:func:`build_anchor_mesh` turns the splats into a triangle mesh:
+This is a step of the conversion pipeline, not a source: when a source returns no mesh, the
+pipeline (:mod:`gsverse_format.pipeline`) rotates its splats into the glTF frame and calls
+:func:`reconstruct_mesh`, which runs :func:`build_anchor_mesh` on them:
 
 1. **Points.** Splat centres with opacity below ``min_opacity`` (default 0.05) are ignored;
    if that would leave fewer than a tenth of the splats, the more opaque half is used instead.
@@ -54,22 +55,23 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
-from ..errors import FormatError, UsageError
-from ..io.ply import read_splat_ply
-from ..meshops import bbox_diagonal, decimate, face_components, mesh_stats, repair
-from ..model import SplatCloud, TriangleMesh
-from ..nearest import nearest_triangles
-from ..quaternion import normalize, to_matrix
-from ..transform import PLY_TO_GLTF, rotate_splats
-from .base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceResult
+from gsverse_format.errors import FormatError, UsageError
+from gsverse_format.meshops import bbox_diagonal, decimate, face_components, mesh_stats, repair
+from gsverse_format.model import SplatCloud, TriangleMesh
+from gsverse_format.nearest import nearest_triangles
+from gsverse_format.quaternion import normalize, to_matrix
 
-__all__ = ["DEFAULT_FACES", "load", "build_anchor_mesh", "splat_normals", "orient_normals",
-           "poisson_depth", "distance_check"]
+__all__ = ["DEFAULT_FACES", "reconstruct_mesh", "build_anchor_mesh", "splat_normals",
+           "orient_normals", "poisson_depth", "distance_check"]
 
-#: Face count of the reconstructed mesh when ``--faces`` is not given.
+#: Face count of the reconstructed mesh when neither ``--reconstruct-faces`` nor ``--faces``
+#: is given.
 DEFAULT_FACES = 20000
 _MIN_POINTS = 16
 _CHECK_SAMPLE = 200_000
@@ -128,11 +130,11 @@ def orient_normals(points: np.ndarray, normals: np.ndarray, k: int = 12) -> tupl
         w = 1.0 - np.abs(np.einsum("ij,ij->i", nrm[rows], nrm[cols])) + 1e-4 * d / scale + 1e-9
         graph = coo_matrix((w, (rows, cols)), shape=(n, n)).tocsr()
         tree = minimum_spanning_tree(graph)
-        n_comp, label = connected_components(tree, directed=False)
+        _, label = connected_components(tree, directed=False)
         tree = tree.tocoo()
         tr, tc = tree.row, tree.col
     else:
-        n_comp, label = 1, np.zeros(n, np.int64)
+        label = np.zeros(n, np.int64)
         tr = tc = np.zeros(0, np.int64)
     # Seed of each part: its point farthest from the global centroid.
     far = np.einsum("ij,ij->i", p - centre, p - centre)
@@ -185,8 +187,9 @@ def _default_threads() -> int:
     return max(1, cores // 2)
 
 
-def _poisson(points, normals, weights, depth: int, threads: int):
-    import pymeshlab
+def _poisson(points: np.ndarray, normals: np.ndarray, weights: np.ndarray, depth: int,
+             threads: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    import pymeshlab  # a dependency: missing, it is an installation problem, not bad input
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=points, v_normals_matrix=normals,
@@ -206,7 +209,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
                       depth: int | None = None, *, min_opacity: float = 0.05,
                       trim_percentile: float = 20.0, trim_gap: float = 1.0,
                       min_component: float = 0.01,
-                      threads: int | None = None) -> tuple[TriangleMesh, dict]:
+                      threads: int | None = None) -> tuple[TriangleMesh, dict[str, Any]]:
     """Reconstruct an anchor mesh from ``splats`` (see the module docstring for each step).
 
     Returns ``(mesh, report)``; the mesh is in the splats' frame and units. ``report`` holds
@@ -224,7 +227,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     if len(splats) < _MIN_POINTS:
         raise FormatError(f"only {len(splats)} splats: too few to reconstruct a mesh; "
                           "pass the object's mesh with --mesh")
-    report: dict = {"splats": len(splats), "notes": [], "seconds": {}}
+    report: dict[str, Any] = {"splats": len(splats), "notes": [], "seconds": {}}
     t0 = time.perf_counter()
     use, note = _select_points(splats, min_opacity)
     if note:
@@ -240,10 +243,12 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     t1 = time.perf_counter()
     depth = poisson_depth(faces) if depth is None else int(depth)
     report["depth"] = depth
+    import pymeshlab
+
     try:
         v, f, q = _poisson(pts, normals, weights, depth,
                            _default_threads() if threads is None else max(1, int(threads)))
-    except Exception as exc:
+    except pymeshlab.PyMeshLabException as exc:   # the filter refused these points
         raise FormatError(f"screened Poisson reconstruction failed ({type(exc).__name__}: "
                           f"{exc})".splitlines()[0] + "; pass a mesh with --mesh") from None
     report["seconds"]["poisson"] = time.perf_counter() - t1
@@ -281,7 +286,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
 
 
 def distance_check(splats: SplatCloud, mesh: TriangleMesh, *,
-                   sample: int = _CHECK_SAMPLE) -> dict:
+                   sample: int = _CHECK_SAMPLE) -> dict[str, float | int]:
     """Distances from splat centres to ``mesh`` relative to its bounding-box diagonal.
 
     Returns ``{"distance_p50_rel", "distance_p95_rel", "distance_max_rel", "checked"}``; at most
@@ -296,27 +301,20 @@ def distance_check(splats: SplatCloud, mesh: TriangleMesh, *,
             "distance_max_rel": float(d.max() / diag) if d.size else 0.0, "checked": int(idx.size)}
 
 
-def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
-    """3DGS PLY ``input_path`` with no mesh: splats plus a reconstructed anchor mesh."""
-    if mesh_path is not None:
-        raise UsageError("a mesh was given: it is used as is by the plain 3DGS source "
-                         "(--from 3dgs); reconstruction is only for PLYs without --mesh",
-                         input_path)
-    splats = read_splat_ply(input_path)
-    notes = []
-    if options.frame_change:
-        splats = rotate_splats(splats, PLY_TO_GLTF)
-        notes.append("3DGS frame (+Y down) rotated 180 degrees about Z into glTF (+Y up)")
+def reconstruct_mesh(result: SourceResult, faces: int | None, input_path: str) -> SourceResult:
+    """``result`` (splats without a mesh) with an anchor mesh of about ``faces`` faces
+    (default :data:`DEFAULT_FACES`) reconstructed from its splats, in the splats' frame; the
+    notes and ``check`` say what was done and how close the splats lie to the mesh."""
     try:
-        mesh, report = build_anchor_mesh(splats, options.faces)
+        mesh, report = build_anchor_mesh(result.splats, faces)
     except FormatError as exc:
         raise exc.with_path(input_path) from None
-    notes.append(f"anchor mesh reconstructed from {report['points']} of {report['splats']} splat "
-                 f"centres (screened Poisson depth {report['depth']}, {report['poisson_faces']} "
-                 f"faces, {report['trimmed_faces']} trimmed) and decimated to {report['faces']} "
-                 f"faces; for thin, open or hairy subjects pass a mesh with --mesh")
+    notes = [f"anchor mesh reconstructed from {report['points']} of {report['splats']} splat "
+             f"centres (screened Poisson depth {report['depth']}, {report['poisson_faces']} "
+             f"faces, {report['trimmed_faces']} trimmed) and decimated to {report['faces']} "
+             f"faces; for thin, open or hairy subjects pass a mesh with --mesh"]
     notes.extend(report["notes"])
     check = {f"reconstruct_{k}": v for k, v in report.items() if k not in ("notes", "seconds")}
     check["reconstruct_seconds"] = round(report["seconds"]["total"], 3)
-    check.update(distance_check(splats, mesh))
-    return SourceResult(splats, mesh, None, notes, check)
+    check.update(distance_check(result.splats, mesh))
+    return replace(result, mesh=mesh, notes=result.notes + notes, check={**result.check, **check})

@@ -24,31 +24,33 @@ rotation relative to the triangle's rest frame (spec §Writing anchors) — so t
 gives back the PLY splats. Splats on faces that are degenerate at rest (which the spec forbids
 as anchors) are bound to their nearest regular face instead.
 
-All SuGaR outputs are in the 3DGS/COLMAP frame; with ``frame_change`` splats and mesh are rotated
-into glTF's frame like any 3DGS PLY (180° about +Z).
+All SuGaR outputs are in the 3DGS/COLMAP frame: the loader returns splats, mesh and anchors in
+it (``frame`` ``"3dgs"``), and the pipeline rotates them into glTF's frame like any 3DGS PLY
+(180° about +Z; the anchors, relative to their triangles, do not change).
 """
 from __future__ import annotations
 
 import os
 import re
+from typing import Any
 
 import numpy as np
 
-from .. import quaternion as quat
-from ..binding import bind_local
-from ..errors import FormatError, GsverseError
-from ..frames import local_frames
-from ..io.mesh import read_mesh
-from ..io.ply import read_splat_ply
-from ..model import Anchoring, LocalAnchors, SplatCloud, TriangleMesh
-from ..remap import remap
-from ..tolerances import mesh_extent, rest_mean_tolerance
-from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
-from .base import SourceOptions, SourceResult
-from .checkpoint import as_array, load_torch_checkpoint
+from gsverse_format import quaternion as quat
+from gsverse_format.binding import bind_local
+from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.checkpoint import as_array, load_torch_checkpoint
+from gsverse_format.converters.registry import register_source
+from gsverse_format.errors import FormatError, GsverseError
+from gsverse_format.frames import local_frames
+from gsverse_format.io.mesh import read_mesh
+from gsverse_format.io.ply import describe_ply, read_splat_ply
+from gsverse_format.model import Anchoring, DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
+from gsverse_format.remap_reference import remap
+from gsverse_format.tolerances import mesh_extent, rest_mean_tolerance
 
-__all__ = ["SLOT_BARYCENTRICS", "load", "matches_layout", "slot_barycentrics", "face_anchors",
-           "load_torch_checkpoint", "rest_errors", "mean_tolerance"]
+__all__ = ["SLOT_BARYCENTRICS", "load", "detect", "matches_layout", "slot_barycentrics",
+           "face_anchors", "load_torch_checkpoint", "rest_errors", "mean_tolerance"]
 
 #: SuGaR's slot table: row j = barycentric weights (w0, w1, w2) of corners (v0, v1, v2) for
 #: slot j of a triangle carrying k splats. SuGaR holds them as float32.
@@ -75,18 +77,19 @@ def slot_barycentrics(k: int) -> np.ndarray:
     return np.asarray(SLOT_BARYCENTRICS[k], dtype=np.float32)
 
 
-def face_anchors(splats: SplatCloud, mesh: TriangleMesh, face: np.ndarray,
-                 barycentrics: np.ndarray, deformation: str = "affine") -> LocalAnchors:
+def face_anchors(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray,
+                 barycentrics: np.ndarray,
+                 deformation: DeformationLaw = "affine") -> LocalAnchors:
     """``local`` anchors of splats whose face and barycentric position are known.
 
-    ``face`` (N,) gives each splat's triangle, ``barycentrics`` (N, 2) its weights (b1, b2) on
+    ``face_index`` (N,) gives each splat's triangle, ``barycentrics`` (N, 2) its weights (b1, b2) on
     corners 1 and 2. The normal offset is the signed distance of the mean from the plane
     through the barycentric point along the rest normal; rotation and scale are stored as
     :func:`gsverse_format.binding.bind_local` stores them (rotation relative to the triangle's
     rest frame, scale as is), so that the remap at rest reproduces the splats up to the
     in-plane distance between each mean and its barycentric point.
     """
-    face = np.asarray(face, dtype=np.intp)
+    face = np.asarray(face_index, dtype=np.intp)
     b = np.asarray(barycentrics, dtype=np.float32).astype(np.float64)
     tri = mesh.triangles()
     frames = local_frames(tri)
@@ -100,13 +103,13 @@ def face_anchors(splats: SplatCloud, mesh: TriangleMesh, face: np.ndarray,
     return LocalAnchors(face.astype(np.uint32), b, offset, q_local, splats.scales, deformation)
 
 
-def rest_errors(splats: SplatCloud, mesh: TriangleMesh, anchors: LocalAnchors) -> dict:
+def rest_errors(splats: SplatCloud, mesh: TriangleMesh, anchors: LocalAnchors) -> dict[str, float]:
     """Pose ``anchors`` at the rest mesh and compare with ``splats``.
 
     At rest the ``local`` remap reduces to mean = v0 + b1 e1 + b2 e2 + d n_r and rotation
     R_r R_l with scale s_l (G = I, k = 1, both laws), evaluated here in float64 from the stored
     float32 anchors without the per-splat SVD; splats on faces degenerate at rest, where the
-    spec's fallback applies, go through :func:`gsverse_format.remap.remap`. Returns
+    spec's fallback applies, go through :func:`gsverse_format.remap_reference.remap`. Returns
     ``max_mean_error`` (scene units), ``max_mean_error_rel`` (÷ the mesh's bounding-box diagonal)
     and ``max_cov_rel_error`` (max over splats of ‖ΔΣ‖_F / ‖Σ‖_F).
     """
@@ -224,11 +227,11 @@ def _splats_per_face(n: int, f: int, input_path: str, mesh_name: str,
     return k
 
 
-def _verify_means(splats: SplatCloud, mesh: TriangleMesh, face: np.ndarray, weights: np.ndarray,
-                  k: int, mesh_name: str) -> tuple[float, float]:
+def _verify_means(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray,
+                  weights: np.ndarray, k: int, mesh_name: str) -> tuple[float, float]:
     """Max distance of the PLY means from their slot positions (absolute, ÷ diagonal)."""
     tri = mesh.triangles()
-    slot = np.einsum("nm,nmx->nx", weights.astype(np.float64), tri[face])
+    slot = np.einsum("nm,nmx->nx", weights.astype(np.float64), tri[face_index])
     err = np.linalg.norm(splats.means.astype(np.float64) - slot, axis=1)
     diagonal = _diagonal(mesh)
     worst = float(err.max()) if err.size else 0.0
@@ -248,7 +251,7 @@ def _verify_means(splats: SplatCloud, mesh: TriangleMesh, face: np.ndarray, weig
                       "mesh (moved vertices or reordered faces); " + _REFINED_FIX, mesh_name)
 
 
-def matches_layout(ply_path: str, mesh_path: str, info: dict) -> bool:
+def matches_layout(ply_path: str, mesh_path: str, info: dict[str, Any]) -> bool:
     """Whether a PLY (header summary ``info`` from ``describe_ply``) and a mesh look like a
     refined SuGaR PLY and its mesh, for source auto-detection.
 
@@ -291,6 +294,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
         notes.append("anchor mesh from the refined checkpoint (_points, _surface_mesh_faces)"
                      + ("; the --mesh file was not needed" if mesh_path is not None else ""))
     else:
+        assert mesh_path is not None
         mesh_name = os.fspath(mesh_path)
         mesh = read_mesh(mesh_name)
 
@@ -302,11 +306,6 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     worst, rel = _verify_means(splats, mesh, face, weights, k, mesh_name)
     notes.append(f"SuGaR binding: {k} splat(s) per face on {f} faces, slot positions match the "
                  f"PLY means within {worst:.2g} ({rel:.2g} of the mesh diagonal)")
-
-    if options.frame_change:
-        splats = rotate_splats(splats, PLY_TO_GLTF)
-        mesh = rotate_mesh(mesh, PLY_TO_GLTF)
-        notes.append("3DGS/COLMAP frame rotated 180 degrees about Z into glTF (+Y up)")
 
     anchors = face_anchors(splats, mesh, face, weights[:, 1:])
     regular = local_frames(mesh.triangles()).regular
@@ -326,4 +325,16 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
              "ply_to_slot_max_error": worst, "ply_to_slot_max_error_rel": rel,
              "splats_rebound_from_degenerate_faces": moved}
     check.update(rest_errors(splats, mesh, anchors))
-    return SourceResult(splats, mesh, anchors, notes, check)
+    return SourceResult(splats, mesh, anchors, notes, check, frame="3dgs")
+
+
+def detect(input_path: str, mesh_path: str | None) -> str | None:
+    """A PLY and a mesh in SuGaR's layout (:func:`matches_layout`)."""
+    if mesh_path is None or os.path.splitext(input_path)[1].lower() != ".ply":
+        return None
+    if matches_layout(input_path, mesh_path, describe_ply(input_path)):
+        return "splat count is k x face count with SuGaR's slot positions"
+    return None
+
+
+register_source("sugar", load, detect=detect, priority=30)

@@ -1,28 +1,30 @@
 """Plain 3DGS PLY source: splats from any 3DGS-layout PLY, anchored to a given mesh.
 
-With ``--mesh`` the mesh is read as is, assumed to be in the same frame as the PLY, and both
-are rotated into the glTF frame together; every splat is then bound to its nearest triangle by
-the pipeline. Without a mesh, :mod:`gsverse_format.converters.reconstruct` builds one from the
-splats themselves.
+With ``--mesh`` the mesh is read as is and taken to be in the same frame as the PLY (the 3DGS
+frame, +Y down); the pipeline rotates both into the glTF frame together and binds every splat
+to its nearest triangle. Without a mesh the result has none, and the pipeline reconstructs one
+from the splats (:mod:`gsverse_format.converters.reconstruct`).
 """
 from __future__ import annotations
 
-from ..io.mesh import read_mesh
-from ..io.ply import read_splat_ply
-from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
-from .base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.registry import register_source
+from gsverse_format.io.mesh import read_mesh
+from gsverse_format.io.ply import read_splat_ply
+
+__all__ = ["load", "detect"]
 
 
 def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
-    if mesh_path is None:
-        from . import reconstruct
-
-        return reconstruct.load(input_path, None, options)
+    """The PLY's splats and the mesh (if any), both in the 3DGS frame."""
     splats = read_splat_ply(input_path)
-    mesh = read_mesh(mesh_path)
-    notes = []
-    if options.frame_change:
-        splats = rotate_splats(splats, PLY_TO_GLTF)
-        mesh = rotate_mesh(mesh, PLY_TO_GLTF)
-        notes.append("3DGS frame (+Y down) rotated 180 degrees about Z into glTF (+Y up)")
-    return SourceResult(splats, mesh, None, notes)
+    mesh = read_mesh(mesh_path) if mesh_path is not None else None
+    return SourceResult(splats, mesh, None, [], frame="3dgs")
+
+
+def detect(input_path: str, mesh_path: str | None) -> str:
+    """Every input not claimed by another source is a plain 3DGS PLY."""
+    return "plain 3DGS PLY"
+
+
+register_source("3dgs", load, detect=detect, priority=100)

@@ -14,9 +14,10 @@ Frames
     +Y up). So ``p_glb = Tᵀ·Tᵀ·p_ply = D·p_ply`` with ``D = diag(1, −1, −1)``, a rotation of
     180° about +X; it is applied to the splats (means and orientations; SH0 needs no rotation).
     PLYs saved before that commit have no export rotation: ``p_glb = Tᵀ·p_ply``
-    (``options.legacy_frame``, ``--legacy-trellis-frame``). With ``frame_change`` off the PLY is
-    taken to be in the GLB's frame already. The mesh is read from the GLB (node transforms
-    applied) and is already in the glTF frame.
+    (``options.trellis_frame == "legacy"``, ``--legacy-trellis-frame``); with ``"none"``
+    (``--no-frame-change``) the PLY is taken to be in the GLB's frame already. The mesh is read
+    from the GLB (node transforms applied) and is already in the glTF frame, and so is the
+    result (``frame`` ``"gltf"``).
 
 Mesh
     ``to_glb`` decimates the mesh, fills holes and unwraps it with xatlas, which duplicates
@@ -35,18 +36,21 @@ Checks
 """
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
-from ..errors import FormatError, UsageError
-from ..io.mesh import read_mesh
-from ..io.ply import describe_ply, read_splat_ply
-from ..meshops import bbox_diagonal, mesh_stats, weld
-from ..model import TriangleMesh
-from ..nearest import nearest_triangles
-from ..transform import rotate_splats
-from .base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.registry import register_source
+from gsverse_format.errors import FormatError, UsageError
+from gsverse_format.io.mesh import read_mesh
+from gsverse_format.io.ply import describe_ply, read_splat_ply
+from gsverse_format.meshops import bbox_diagonal, mesh_stats, weld
+from gsverse_format.model import TriangleMesh
+from gsverse_format.nearest import nearest_triangles
+from gsverse_format.transform import rotate_splats
 
-__all__ = ["T_EXPORT", "PLY_TO_GLB", "LEGACY_PLY_TO_GLB", "load", "frame_distances"]
+__all__ = ["T_EXPORT", "PLY_TO_GLB", "LEGACY_PLY_TO_GLB", "load", "detect", "frame_distances"]
 
 #: TRELLIS ``save_ply`` export rotation (internal Z-up frame -> PLY), since 2024-12-18.
 T_EXPORT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -133,12 +137,9 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
                  f"component(s), {stats.boundary_edges} boundary and {stats.nonmanifold_edges} "
                  "non-manifold edges")
 
-    if not options.frame_change:
-        frame = "none"
-        if options.legacy_frame:
-            notes.append("--legacy-trellis-frame ignored: --no-frame-change keeps the PLY as is")
-    else:
-        frame = "legacy" if options.legacy_frame else "current"
+    frame = options.trellis_frame
+    if frame not in _FRAMES:
+        raise UsageError(f"unknown TRELLIS frame {frame!r}; use one of {', '.join(_FRAMES)}")
     diag = bbox_diagonal(mesh)
     if not diag > 0:
         raise FormatError("the welded mesh has a zero-size bounding box", mesh_path)
@@ -146,7 +147,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     probe = splats.means[_subset(len(splats), _PROBE)]
     medians = {name: float(np.median(frame_distances(probe, mesh, rot))) / diag
                for name, (rot, _, _) in _FRAMES.items()}
-    best = min(medians, key=medians.get)
+    best = min(medians, key=medians.__getitem__)
     if medians[frame] > MISMATCH or (medians[frame] > MISMATCH / 10
                                      and medians[best] * BETTER < medians[frame]):
         raise FormatError(_mismatch(frame, medians), input_path)
@@ -172,13 +173,24 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
              "mesh_nonmanifold_edges": stats.nonmanifold_edges}
     notes.append(f"splat-to-mesh distance: median {100 * p50 / diag:.2g}%, p95 "
                  f"{100 * p95 / diag:.2g}%, max {100 * d.max() / diag:.2g}% of the mesh diagonal")
-    return SourceResult(splats, mesh, None, notes, check)
+    return SourceResult(splats, mesh, None, notes, check, frame="gltf")
+
+
+def detect(input_path: str, mesh_path: str | None) -> str | None:
+    """An SH0 PLY with normals and nothing else, and a GLB mesh: TRELLIS's layout."""
+    if mesh_path is None or os.path.splitext(input_path)[1].lower() != ".ply" \
+            or os.path.splitext(mesh_path)[1].lower() != ".glb":
+        return None
+    info = describe_ply(input_path)
+    if info.get("sh_degree") == 0 and info.get("has_normals") and not info.get("extra"):
+        return "SH0 PLY with normals and a GLB mesh (TRELLIS layout)"
+    return None
 
 
 def _mismatch(frame: str, medians: dict[str, float]) -> str:
     """The one-line cause for splats far from the mesh, naming the frame that fits."""
     median = medians[frame]
-    best = min((f for f in medians if f != frame), key=medians.get)
+    best = min((f for f in medians if f != frame), key=medians.__getitem__)
     head = (f"splats lie far from the mesh (median distance {100 * median:.3g}% of its diagonal) "
             f"in {_name(frame)}: frame mismatch?")
     if medians[best] > MISMATCH or medians[best] * BETTER >= median:
@@ -193,3 +205,6 @@ def _mismatch(frame: str, medians: dict[str, float]) -> str:
         return (f"{head} the PLY has TRELLIS's 2024-12-18 export rotation: drop "
                 f"{'--legacy-trellis-frame' if frame == 'legacy' else '--no-frame-change'} ({fit})")
     return f"{head} the PLY is already in the GLB's frame: pass --no-frame-change ({fit})"
+
+
+register_source("trellis", load, detect=detect, priority=40)

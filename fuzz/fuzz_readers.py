@@ -64,7 +64,7 @@ def seeds() -> list[tuple[str, bytes]]:
     from gsverse_format.io.gltf import asset_to_gltf, gltf_to_bytes
     from gsverse_format.io.ply import write_splat_ply
     from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatPrimitive)
-    from gsverse_format.remap import remap
+    from gsverse_format.remap_reference import remap
 
     mesh = example_mesh(subdivisions=0)
     cloud = example_splats(mesh, 12, seed=3)
@@ -128,12 +128,9 @@ def _glb_parts(data: bytes):
 
 
 def _glb(text: bytes, binary: bytes | None) -> bytes:
-    text = text + b" " * (-len(text) % 4)
-    out = struct.pack("<II", len(text), 0x4E4F534A) + text
-    if binary is not None:
-        binary = binary + b"\0" * (-len(binary) % 4)
-        out += struct.pack("<II", len(binary), 0x004E4942) + binary
-    return struct.pack("<4sII", b"glTF", 2, 12 + len(out)) + out
+    from gsverse_format.io.gltf import glb_bytes
+
+    return glb_bytes(text, binary)
 
 
 def _mutate_json(rng: random.Random, text: bytes) -> bytes:
@@ -288,12 +285,13 @@ def _targets() -> dict[str, list[tuple[str, Callable[[str], object]]]]:
     from gsverse_format.io.gltf import read_gltf
     from gsverse_format.io.mesh import read_mesh
     from gsverse_format.io.ply import read_ply_elements, read_ply_mesh, read_splat_ply
+    from gsverse_format.codes import Code
     from gsverse_format.validators.container import Options
     from gsverse_format.validators.validate import validate_file
 
     def validate(path: str):
         report = validate_file(path, Options(max_bytes=64 * 2 ** 20))
-        internal = [f for f in report.findings if f.code == "INTERNAL_ERROR"]
+        internal = [f for f in report.findings if f.code == Code.INTERNAL_ERROR]
         if internal:
             raise AssertionError(f"validator INTERNAL_ERROR: {internal[0].message}")
         return report
@@ -376,7 +374,8 @@ class Fuzzer:
         saved = None
         if self.crash_dir:
             os.makedirs(self.crash_dir, exist_ok=True)
-            saved = os.path.join(self.crash_dir, f"{kind}-{target}-{len(self.failures):04d}{suffix}")
+            name = f"{kind}-{target}-{len(self.failures):04d}{suffix}"
+            saved = os.path.join(self.crash_dir, name)
             with open(saved, "wb") as handle:
                 handle.write(data)
         self.failures.append(Failure(target, suffix, kind, detail, saved))

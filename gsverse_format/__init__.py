@@ -3,17 +3,20 @@
 The rest pose is plain ``KHR_gaussian_splatting``; the anchoring (which triangle each
 splat follows and how) is the ``GSVERSE_gaussian_splatting_mesh_anchor`` extension.
 See ``spec/README.md`` for the normative text.
+
+The public API is :func:`read`, :func:`write`, :func:`convert`, :func:`remap`,
+:func:`validate` and :func:`bind` (:mod:`gsverse_format.api`) and the data model
+(:mod:`gsverse_format.model`); ``ARCHITECTURE.md`` says where everything else lives.
 """
+from .api import bind, convert, read, remap, validate, write
 from .errors import BindingError, FormatError, GsverseError, UsageError
 from .model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                     SplatPrimitive, TriangleMesh)
-
-__version__ = "0.1.0"
-
-#: Name of the glTF extension defined by this project.
-EXTENSION_NAME = "GSVERSE_gaussian_splatting_mesh_anchor"
+from .version import __version__
+from .vocabulary import EXTENSION as EXTENSION_NAME
 
 __all__ = [
+    "read", "write", "convert", "remap", "validate", "bind",
     "Anchoring", "GamesAnchors", "LocalAnchors", "SplatAsset", "SplatCloud", "SplatPrimitive",
     "TriangleMesh", "GsverseError", "FormatError", "UsageError", "BindingError",
     "EXTENSION_NAME", "__version__",

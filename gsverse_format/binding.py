@@ -18,7 +18,7 @@ import numpy as np
 from . import quaternion as quat
 from .errors import BindingError
 from .frames import local_frames
-from .model import LocalAnchors, SplatCloud, TriangleMesh
+from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
 from .nearest import nearest_triangles
 
 __all__ = ["BindResult", "bind_local"]
@@ -35,7 +35,15 @@ class BindResult:
 
 def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "affine",
                progress: Callable[[int, int], None] | None = None) -> BindResult:
-    """Bind every splat of ``splats`` to its nearest non-degenerate face of ``mesh``."""
+    """Bind every splat of ``splats`` to its nearest non-degenerate face of ``mesh``.
+
+    ``deformation`` is the law stored with the anchors, ``"affine"`` or ``"rigid"``
+    (``ValueError`` otherwise); ``progress(done, total)`` follows the nearest-triangle search.
+    Raises :class:`~gsverse_format.errors.BindingError` when the mesh has no usable triangle.
+    """
+    if deformation not in ("affine", "rigid"):
+        raise ValueError(f"deformation must be 'affine' or 'rigid', got {deformation!r}")
+    law: DeformationLaw = "rigid" if deformation == "rigid" else "affine"
     if mesh.face_count == 0:
         raise BindingError("the anchor mesh has no triangles")
     tri = mesh.triangles()
@@ -46,13 +54,11 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     if len(splats) == 0:
         empty = np.zeros(0)
         return BindResult(LocalAnchors(np.zeros(0, np.uint32), np.zeros((0, 2)), empty,
-                                       np.zeros((0, 4)), np.zeros((0, 3)), deformation), empty,
+                                       np.zeros((0, 4)), np.zeros((0, 3)), law), empty,
                           int(np.count_nonzero(~frames.regular)))
-    kwargs = {"exclude": ~frames.regular}
-    if progress is not None:
-        kwargs["progress"] = progress
     nearest = nearest_triangles(means, mesh.vertices.astype(np.float64),
-                                mesh.faces.astype(np.int64), **kwargs)
+                                mesh.faces.astype(np.int64), exclude=~frames.regular,
+                                progress=progress)
     face = nearest.face.astype(np.intp)
 
     rot = frames.rotation[face]                      # columns t, b, n
@@ -67,5 +73,5 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     q_local = quat.canonical_sign(quat.multiply(quat.conjugate(q_frame),
                                                 quat.normalize(splats.rotations)))
     anchors = LocalAnchors(face.astype(np.uint32), np.stack([b1, b2], axis=-1), offset,
-                           q_local, splats.scales, deformation)
+                           q_local, splats.scales, law)
     return BindResult(anchors, nearest.distance, int(np.count_nonzero(~frames.regular)))

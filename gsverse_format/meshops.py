@@ -247,8 +247,27 @@ def clean(mesh: TriangleMesh) -> TriangleMesh:
 
 # --------------------------------------------------------------------------- pymeshlab
 
+def _pymeshlab():
+    """The pymeshlab module; a missing installation is a :class:`UsageError` (what the user
+    must fix is the environment, not the mesh)."""
+    try:
+        import pymeshlab
+    except ImportError as exc:
+        raise UsageError(f"mesh repair and decimation need pymeshlab, which cannot be imported "
+                         f"({exc}); install it with: pip install pymeshlab") from None
+    return pymeshlab
+
+
+def _pymeshlab_errors() -> tuple[type[BaseException], ...]:
+    """What pymeshlab raises when a filter fails on a mesh."""
+    pml = _pymeshlab()
+    return tuple(getattr(pml, name) for name in (
+        "PyMeshLabException", "MissingComponentException", "MissingCompactnessException",
+        "InvalidEnumException", "InvalidPercentageException") if hasattr(pml, name))
+
+
 def _meshset(mesh: TriangleMesh):
-    import pymeshlab
+    pymeshlab = _pymeshlab()
 
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=mesh.vertices.astype(np.float64),
@@ -281,6 +300,7 @@ def repair(mesh: TriangleMesh) -> TriangleMesh:
     _, counts = edge_valence(cleaned.faces)
     if not np.any(counts > 2):
         return cleaned
+    failures = _pymeshlab_errors()
     try:
         ms = _meshset(cleaned)
         ms.meshing_repair_non_manifold_edges(method="Remove Faces")
@@ -289,7 +309,7 @@ def repair(mesh: TriangleMesh) -> TriangleMesh:
         kept = np.array(m.face_matrix(), dtype=np.int64, copy=True).reshape(-1, 3)
         same_vertices = m.vertex_number() == len(cleaned.vertices)
         del ms
-    except Exception as exc:  # pymeshlab raises its own exception types
+    except failures as exc:
         raise FormatError(f"repair: pymeshlab failed to fix non-manifold edges "
                           f"({type(exc).__name__}: {exc})".splitlines()[0]) from None
     if not same_vertices:  # pragma: no cover - the filter deletes faces only
@@ -337,6 +357,7 @@ def decimate(mesh: TriangleMesh, target_faces: int, *, preserve_boundary: bool =
         raise FormatError("decimate: every face of the mesh is degenerate")
     if source.face_count <= target:
         return source
+    failures = _pymeshlab_errors()
     try:
         ms = _meshset(source)
         last = source.face_count
@@ -352,7 +373,7 @@ def decimate(mesh: TriangleMesh, target_faces: int, *, preserve_boundary: bool =
             last = now
         vertices, faces = _current(ms)
         del ms
-    except Exception as exc:
+    except failures as exc:
         raise FormatError(f"decimation failed in pymeshlab ({type(exc).__name__}: {exc})"
                           .splitlines()[0]) from None
     if len(faces) == 0:

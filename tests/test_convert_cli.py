@@ -10,12 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-from gsverse_format import quaternion as quat
 from gsverse_format.cli.convert import main
 from gsverse_format.examples import make_example
 from gsverse_format.io.gltf import read_gltf
 from gsverse_format.io.ply import read_splat_ply, write_splat_ply
-from gsverse_format.remap import remap
+from gsverse_format.remap_reference import remap
 from gsverse_format.transform import PLY_TO_GLTF, rotate_splats
 
 from helpers import max_rel_cov_error, random_splats

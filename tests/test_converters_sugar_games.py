@@ -12,10 +12,11 @@ import pytest
 
 from gsverse_format.converters import games, sugar
 from gsverse_format.converters.base import SourceOptions
+from gsverse_format.pipeline import load_source
 from gsverse_format.errors import FormatError
 from gsverse_format.io.ply import read_splat_ply, write_splat_ply
 from gsverse_format.model import Anchoring
-from gsverse_format.remap import remap
+from gsverse_format.remap_reference import remap
 from gsverse_format.transform import PLY_TO_GLTF, rotate_splats
 
 from helpers import max_rel_cov_error
@@ -45,7 +46,7 @@ def _rest_errors(result, expected):
 def test_sugar_reproduces_splats_at_rest(tmp_path, k):
     scene = sugar_scene(k, seed=k)
     ply, obj = write_sugar(scene, tmp_path, decimals=None)   # exact float32 OBJ
-    result = sugar.load(ply, obj, SourceOptions())
+    result = load_source("sugar", ply, obj, SourceOptions())
     expected = rotate_splats(read_splat_ply(ply), PLY_TO_GLTF)
     n, f = len(expected), len(scene.faces)
     assert result.anchors.profile == "local" and result.anchors.deformation == "affine"
@@ -69,7 +70,7 @@ def test_sugar_obj_with_six_decimals_and_uv_seams(tmp_path):
     # split vertices at the seams; only the face order matters), positions rounded to 1e-6.
     scene = sugar_scene(6, seed=11)
     ply, obj = write_sugar(scene, tmp_path, decimals=6, uv_per_corner=True)
-    result = sugar.load(ply, obj, SourceOptions())
+    result = load_source("sugar", ply, obj, SourceOptions())
     assert result.mesh.face_count == len(scene.faces)
     expected = rotate_splats(read_splat_ply(ply), PLY_TO_GLTF)
     r = remap(Anchoring(result.mesh, result.anchors))
@@ -81,7 +82,7 @@ def test_sugar_obj_with_six_decimals_and_uv_seams(tmp_path):
 def test_sugar_without_frame_change_keeps_colmap_frame(tmp_path):
     scene = sugar_scene(3, seed=2)
     ply, obj = write_sugar(scene, tmp_path, decimals=None, uv_per_corner=False)
-    result = sugar.load(ply, obj, SourceOptions(frame_change=False))
+    result = load_source("sugar", ply, obj, SourceOptions(), frame_change=False)
     assert np.array_equal(result.mesh.vertices, scene.vertices)
     mean_rel, cov_rel = _rest_errors(result, read_splat_ply(ply))
     assert mean_rel < 1e-6 and cov_rel < 1e-6
@@ -95,7 +96,7 @@ def test_sugar_degenerate_face_is_rebound(tmp_path):
     faces = np.concatenate([base.faces, [[len(base.vertices) + i for i in range(3)]]])
     scene = sugar_scene(4, seed=3, vertices=vertices, faces=faces)
     ply, obj = write_sugar(scene, tmp_path, decimals=None, uv_per_corner=False)
-    result = sugar.load(ply, obj, SourceOptions())
+    result = load_source("sugar", ply, obj, SourceOptions())
     last = len(faces) - 1
     assert result.check["splats_rebound_from_degenerate_faces"] == 4
     assert not np.any(result.anchors.face_index == last)
@@ -111,7 +112,7 @@ def test_sugar_coarse_mesh_is_refused(tmp_path):
     path = str(tmp_path / "sugarmesh_scene_level03_decim1000.ply")
     write_ply_mesh(path, coarse, scene.faces)
     with pytest.raises(FormatError) as info:
-        sugar.load(ply, path, SourceOptions())
+        load_source("sugar", ply, path, SourceOptions())
     message = str(info.value)
     assert message.startswith(path + ":") and "\n" not in message
     assert "coarse mesh" in message and "sugarfine_*.obj" in message and "--pt" in message
@@ -124,7 +125,7 @@ def test_sugar_postprocessed_mesh_is_refused(tmp_path, named):
     obj = str(tmp_path / "sugarfine_scene_postprocessed.obj")
     write_obj(obj, scene.vertices, scene.faces[:-7])
     with pytest.raises(FormatError) as info:
-        sugar.load(ply, obj, SourceOptions())
+        load_source("sugar", ply, obj, SourceOptions())
     message = str(info.value)
     f, n = len(scene.faces), len(scene.cloud)
     assert message.startswith(obj + ":")
@@ -138,21 +139,21 @@ def test_sugar_wrong_k_is_refused(tmp_path):
     doubled = str(tmp_path / "doubled.obj")          # 2F faces: 4F splats = 2 per face
     write_obj(doubled, scene.vertices, np.concatenate([scene.faces, scene.faces]))
     with pytest.raises(FormatError, match=r"2 per face, but SuGaR places 1, 3, 4 or 6"):
-        sugar.load(ply, doubled, SourceOptions())
+        load_source("sugar", ply, doubled, SourceOptions())
     with pytest.raises(FormatError, match=r"k = 5 .*from --k.* 1, 3, 4 or 6"):
-        sugar.load(ply, obj, SourceOptions(k=5))
+        load_source("sugar", ply, obj, SourceOptions(k=5))
     assert len(scene.cloud) % 6 and len(scene.cloud) % 3        # 4 × 320 splats
     with pytest.raises(FormatError, match=r"not a multiple of k = 6 \(from --k\)"):
-        sugar.load(ply, obj, SourceOptions(k=6))
+        load_source("sugar", ply, obj, SourceOptions(k=6))
     named = str(tmp_path / "sugarfine_x_gaussperface3.ply")     # k from the file name
     shutil.copy(ply, named)
     with pytest.raises(FormatError, match=r"not a multiple of k = 3 \(from the file name\)"):
-        sugar.load(named, obj, SourceOptions())
+        load_source("sugar", named, obj, SourceOptions())
     three = sugar_scene(3, seed=6)
     ply3, obj3 = write_sugar(three, tmp_path / "k3", decimals=None)
     with pytest.raises(FormatError, match=r"320 faces but the PLY has 960 splats = 6×160 faces: "
                                           r"this mesh belongs to another run"):
-        sugar.load(ply3, obj3, SourceOptions(k=6))
+        load_source("sugar", ply3, obj3, SourceOptions(k=6))
 
 
 def test_sugar_layout_detection(tmp_path):
@@ -172,7 +173,7 @@ def test_sugar_layout_detection(tmp_path):
 def test_sugar_needs_a_mesh(tmp_path):
     ply, _ = write_sugar(sugar_scene(1), tmp_path)
     with pytest.raises(FormatError, match=r"--mesh .*--pt"):
-        sugar.load(ply, None, SourceOptions())
+        load_source("sugar", ply, None, SourceOptions())
 
 
 def test_sugar_pt_needs_torch(tmp_path, monkeypatch):
@@ -181,7 +182,7 @@ def test_sugar_pt_needs_torch(tmp_path, monkeypatch):
     pt.write_bytes(b"not used")
     monkeypatch.setitem(sys.modules, "torch", None)
     with pytest.raises(FormatError, match=r"reading \.pt needs PyTorch: pip install torch"):
-        sugar.load(ply, None, SourceOptions(pt_path=str(pt)))
+        load_source("sugar", ply, None, SourceOptions(pt_path=str(pt)))
 
 
 def test_sugar_refined_checkpoint(tmp_path):
@@ -193,7 +194,7 @@ def test_sugar_refined_checkpoint(tmp_path):
                 "state_dict": {"_points": torch.nn.Parameter(torch.from_numpy(scene.vertices)),
                                "_surface_mesh_faces": torch.from_numpy(scene.faces),
                                "surface_mesh_thickness": torch.tensor(1e-6)}}, pt)
-    result = sugar.load(ply, None, SourceOptions(pt_path=pt))
+    result = load_source("sugar", ply, None, SourceOptions(pt_path=pt))
     mean_rel, cov_rel = _rest_errors(result, rotate_splats(read_splat_ply(ply), PLY_TO_GLTF))
     assert mean_rel < 1e-7 and cov_rel < 1e-6
 
@@ -210,7 +211,7 @@ GAMES_COV_BOUND = 1e-5
 def test_gsverse_folder_reproduces_ply(tmp_path, frame):
     scene = games_scene(frame, k=5, seed=1 if frame == "blender" else 2)
     folder = write_gsverse_folder(scene, tmp_path / "export")
-    result = games.load(str(folder), None, SourceOptions())
+    result = load_source("games", str(folder), None, SourceOptions())
     to_gltf = games.Z_UP_TO_GLTF if frame == "blender" else PLY_TO_GLTF
     expected = rotate_splats(read_splat_ply(folder / "point_cloud.ply"), to_gltf)
     assert result.check["frame"] == frame and result.check["k"] == 5
@@ -251,41 +252,41 @@ def test_games_output_layout_highest_iteration(tmp_path):
     mesh = tmp_path / "dataset" / "mesh.obj"
     mesh.parent.mkdir()
     write_obj(mesh, scene.obj_vertices, scene.faces)
-    result = games.load(str(root), str(mesh), SourceOptions())
+    result = load_source("games", str(root), str(mesh), SourceOptions())
     assert len(result.splats) == len(scene.cloud)
     assert any("iteration_30000" in note for note in result.notes)
     # the point_cloud.ply path itself, model_params.json beside it
-    again = games.load(str(late / "point_cloud.ply"), str(mesh), SourceOptions())
+    again = load_source("games", str(late / "point_cloud.ply"), str(mesh), SourceOptions())
     assert np.array_equal(again.splats.means, result.splats.means)
 
 
 def test_games_json_variants(tmp_path):
     scene = games_scene("colmap", k=4, seed=3)
     folder = write_gsverse_folder(scene, tmp_path)
-    reference = games.load(str(folder), None, SourceOptions())
+    reference = load_source("games", str(folder), None, SourceOptions())
     params = folder / "model_params.json"
     # one-element list around the arrays (a multi-mesh run with one mesh)
     params.write_text(json.dumps({"_alpha": [scene.alpha_raw.tolist()],
                                   "_scale": [scene.rho[:, None].tolist()]}))
-    wrapped = games.load(str(folder), None, SourceOptions())
+    wrapped = load_source("games", str(folder), None, SourceOptions())
     assert np.array_equal(wrapped.splats.means, reference.splats.means)
     # flattened α (N, 3): k from the face count, or --k
     params.write_text(json.dumps({"_alpha": scene.alpha_raw.reshape(-1, 3).tolist(),
                                   "_scale": scene.rho[:, None].tolist()}))
-    flat = games.load(str(folder), None, SourceOptions(k=4))
+    flat = load_source("games", str(folder), None, SourceOptions(k=4))
     assert np.array_equal(flat.anchors.face_index, reference.anchors.face_index)
     write_gsverse_folder(scene, folder, mesh=False)      # back to (F, k, 3)
     with pytest.raises(FormatError, match=r"4 splats per face, not --k 2"):
-        games.load(str(folder), None, SourceOptions(k=2))
+        load_source("games", str(folder), None, SourceOptions(k=2))
     params.write_text(json.dumps({"alpha": []}))
     with pytest.raises(FormatError, match=r"needs the keys _alpha and _scale"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
 
 
 def test_games_without_frame_change_stays_in_training_frame(tmp_path):
     scene = games_scene("blender", k=2, seed=5)
     folder = write_gsverse_folder(scene, tmp_path)
-    result = games.load(str(folder), None, SourceOptions(frame_change=False))
+    result = load_source("games", str(folder), None, SourceOptions(), frame_change=False)
     assert np.array_equal(result.mesh.vertices, scene.train_vertices)
     assert np.max(np.abs(result.splats.means - scene.cloud.means)) < 1e-6
 
@@ -294,7 +295,7 @@ def test_games_missing_model_params(tmp_path):
     scene = games_scene("colmap", k=2)
     folder = write_gsverse_folder(scene, tmp_path, params=False)
     with pytest.raises(FormatError) as info:
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
     message = str(info.value)
     assert message.startswith(str(folder / "point_cloud.ply") + ":")
     assert "model_params.json" in message and "import_params.py" in message and "--pt" in message
@@ -303,12 +304,12 @@ def test_games_missing_model_params(tmp_path):
 def test_games_missing_mesh(tmp_path):
     folder = write_gsverse_folder(games_scene("colmap", k=2), tmp_path, mesh=False)
     with pytest.raises(FormatError, match=r"no mesh\.obj .*--mesh"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
 
 
 def test_games_missing_point_cloud(tmp_path):
     with pytest.raises(FormatError, match=r"point_cloud/iteration_\*"):
-        games.load(str(tmp_path), None, SourceOptions())
+        load_source("games", str(tmp_path), None, SourceOptions())
 
 
 def test_games_wrong_mesh(tmp_path):
@@ -317,10 +318,10 @@ def test_games_wrong_mesh(tmp_path):
     moved = scene.obj_vertices + np.float32(0.01)
     write_obj(folder / "mesh.obj", moved, scene.faces)
     with pytest.raises(FormatError, match=r"both frames .*--vertices_lr"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
     write_obj(folder / "mesh.obj", scene.obj_vertices, scene.faces[:-1])
     with pytest.raises(FormatError, match=r"describe \d+ faces but the mesh has"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
 
 
 def test_games_params_of_another_run(tmp_path):
@@ -328,7 +329,7 @@ def test_games_params_of_another_run(tmp_path):
     folder = write_gsverse_folder(scene, tmp_path)
     write_splat_ply(scene.cloud.subset(np.arange(len(scene.cloud) - 2)), folder / "point_cloud.ply")
     with pytest.raises(FormatError, match=r"different runs or iterations"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
 
 
 def test_games_pt_needs_torch(tmp_path, monkeypatch):
@@ -337,7 +338,7 @@ def test_games_pt_needs_torch(tmp_path, monkeypatch):
     (folder / "model_params.pt").write_bytes(b"not used")
     monkeypatch.setitem(sys.modules, "torch", None)
     with pytest.raises(FormatError, match=r"reading \.pt needs PyTorch: pip install torch"):
-        games.load(str(folder), None, SourceOptions())
+        load_source("games", str(folder), None, SourceOptions())
 
 
 def _fake_training_module():
@@ -370,7 +371,7 @@ def test_games_checkpoint_single_mesh(tmp_path, monkeypatch):
                 "triangles": vertices.detach()[faces], "vertices": vertices, "faces": faces},
                folder / "model_params.pt")
     monkeypatch.delitem(sys.modules, module.__name__)   # the loader must not need it
-    result = games.load(str(folder), None, SourceOptions())
+    result = load_source("games", str(folder), None, SourceOptions())
     assert result.check["frame"] == "blender"
     assert np.array_equal(result.mesh.vertices, scene.obj_vertices)
     expected = rotate_splats(read_splat_ply(folder / "point_cloud.ply"), games.Z_UP_TO_GLTF)
@@ -391,7 +392,7 @@ def test_games_checkpoint_multi_mesh(tmp_path):
                 "point_cloud": [None, None], "vertices": [torch.nn.Parameter(v.clone()) for _ in parts],
                 "faces": [torch.from_numpy(scene.faces[p]) for p in parts]},
                folder / "model_params.pt")
-    result = games.load(str(folder), None, SourceOptions())
+    result = load_source("games", str(folder), None, SourceOptions())
     assert result.check["frame"] == "colmap" and result.mesh.face_count == len(scene.faces)
     assert len(result.mesh.vertices) == 2 * len(scene.obj_vertices)
     expected = rotate_splats(read_splat_ply(folder / "point_cloud.ply"), PLY_TO_GLTF)

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from gsverse_format import meshops
 from gsverse_format.converters import khr, reconstruct, trellis
 from gsverse_format.converters.base import SourceOptions
+from gsverse_format.pipeline import load_source
 from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.io.gltf import write_gltf
 from gsverse_format.io.mesh import read_mesh
@@ -246,13 +247,13 @@ def test_trellis_legacy_frame_is_detected_and_named(tmp_path):
     text = str(err.value)
     assert "frame mismatch?" in text and "pass --legacy-trellis-frame" in text
     assert "pre-2024-12-18 frame fits" in text and "\n" not in text
-    result = trellis.load(str(legacy), str(glb), SourceOptions(legacy_frame=True))
+    result = trellis.load(str(legacy), str(glb), SourceOptions(trellis_frame="legacy"))
     assert result.check["frame"] == "legacy" and result.check["distance_p95_rel"] < 0.01
     np.testing.assert_allclose(result.splats.means, expected.means, atol=2e-7)
     with pytest.raises(FormatError, match="drop --legacy-trellis-frame"):
-        trellis.load(str(tmp_path / "run.ply"), str(glb), SourceOptions(legacy_frame=True))
+        trellis.load(str(tmp_path / "run.ply"), str(glb), SourceOptions(trellis_frame="legacy"))
     with pytest.raises(FormatError, match="drop --no-frame-change"):
-        trellis.load(str(tmp_path / "run.ply"), str(glb), SourceOptions(frame_change=False))
+        trellis.load(str(tmp_path / "run.ply"), str(glb), SourceOptions(trellis_frame="none"))
 
 
 def test_trellis_unrelated_mesh_is_refused(tmp_path):
@@ -308,11 +309,11 @@ def test_trellis_real_glb_sample(shared_data, tmp_path):
     assert check["distance_p50_rel"] < 0.003 and check["distance_p95_rel"] < 0.01
     # the legacy reading of the same PLY does not fit, and the error says which frame does
     with pytest.raises(FormatError, match="drop --legacy-trellis-frame"):
-        trellis.load(str(ply), str(glb), SourceOptions(legacy_frame=True))
+        trellis.load(str(ply), str(glb), SourceOptions(trellis_frame="legacy"))
 
 
 def test_trellis_through_the_pipeline(tmp_path):
-    from gsverse_format.convert import ConvertOptions, convert
+    from gsverse_format.pipeline import ConvertOptions, convert
     from gsverse_format.io.gltf import read_gltf
 
     ply, glb, expected = _write_trellis_run(tmp_path, n=1500)
@@ -399,12 +400,10 @@ def test_poisson_trims_unsupported_surface_and_ignores_faint_splats():
 
 
 def test_reconstruct_load_errors(tmp_path):
-    with pytest.raises(UsageError, match="--from 3dgs"):
-        reconstruct.load("x.ply", "mesh.obj", SourceOptions())
     few = _trellis_splats(np.random.default_rng(0).uniform(-1, 1, (5, 3)), seed=1)
     write_splat_ply(few, tmp_path / "few.ply")
     with pytest.raises(FormatError, match="too few"):
-        reconstruct.load(str(tmp_path / "few.ply"), None, SourceOptions())
+        load_source("3dgs", str(tmp_path / "few.ply"))
     with pytest.raises(UsageError):
         reconstruct.build_anchor_mesh(few, 2)
     assert reconstruct.poisson_depth(20000) == 7 and reconstruct.poisson_depth(10) == 5
@@ -430,7 +429,7 @@ def test_reconstruct_load_through_ply(tmp_path):
     points, fi = trimesh.sample.sample_surface(sphere, 5000, seed=12)
     splats = _flat_splats(points + [0.0, 0.3, 0.0], sphere.face_normals[fi], seed=13)
     write_splat_ply(splats, tmp_path / "s.ply")
-    result = reconstruct.load(str(tmp_path / "s.ply"), None, SourceOptions(faces=800))
+    result = load_source("3dgs", str(tmp_path / "s.ply"), reconstruct_faces=800)
     assert result.anchors is None and 780 <= result.mesh.face_count <= 808
     # glTF frame: 180 degrees about Z, so the sphere's centre moves to y = -0.3
     centre = result.mesh.vertices.mean(axis=0)

@@ -87,3 +87,66 @@ def test_unknown_extension(tmp_path):
     path.write_bytes(b"x")
     with pytest.raises(FormatError):
         read_mesh(path)
+
+
+def _ply_mesh(path, fmt, faces_prop, *, extra_vertex=False):
+    """A small PLY mesh (4 vertices, 2 triangles) with a chosen face list declaration."""
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.5]], np.float32)
+    faces = np.array([[0, 1, 2], [1, 3, 2]])
+    ctype, itype, name = faces_prop
+    codes = {"uchar": "u1", "int": "i4", "uint": "u4", "ushort": "u2"}
+    props = ["x", "y", "z"] + (["confidence"] if extra_vertex else [])
+    head = [f"ply\nformat {fmt} 1.0\nelement vertex 4"]
+    head += [f"property float {p}" for p in props]
+    head += ["element face 2", f"property list {ctype} {itype} {name}", "property uchar flag",
+             "end_header\n"]
+    rows_v = np.concatenate([verts, np.full((4, 1), 0.25, np.float32)], 1) if extra_vertex else verts
+    if fmt == "ascii":
+        body = "".join(" ".join(repr(float(v)) for v in row) + "\n" for row in rows_v)
+        body += "".join(f"3 {a} {b} {c} 7\n" for a, b, c in faces)
+        data = body.encode()
+    else:
+        rows = np.zeros(2, [("n", codes[ctype]), ("v", codes[itype], (3,)), ("flag", "u1")])
+        rows["n"], rows["v"], rows["flag"] = 3, faces, 7
+        data = rows_v.astype("<f4").tobytes() + rows.tobytes()
+    path.write_bytes("\n".join(head).encode() + data)
+    return verts, faces
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+@pytest.mark.parametrize("faces_prop", [("uchar", "int", "vertex_indices"),
+                                        ("uchar", "uint", "vertex_index"),
+                                        ("int", "int", "vertex_indices"),
+                                        ("uchar", "ushort", "vertex_index")])
+def test_ply_meshes_read_strictly_and_match_trimesh(tmp_path, monkeypatch, fmt, faces_prop):
+    path = tmp_path / "m.ply"
+    verts, faces = _ply_mesh(path, fmt, faces_prop, extra_vertex=True)
+    ref = trimesh.load(path, force="mesh", process=False, maintain_order=True)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("PLY meshes must not go through trimesh")
+
+    monkeypatch.setattr(trimesh, "load", refuse)
+    mesh = read_mesh(path)
+    assert np.array_equal(mesh.vertices, verts) and np.array_equal(mesh.faces, faces)
+    assert np.array_equal(mesh.vertices, np.asarray(ref.vertices, np.float32))
+    assert np.array_equal(mesh.faces, np.asarray(ref.faces))
+
+
+def test_ply_mesh_polygons_and_bad_input(tmp_path):
+    quads = (b"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+             b"property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+             b"end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    (tmp_path / "q.ply").write_bytes(quads)
+    assert read_mesh(tmp_path / "q.ply").faces.tolist() == [[0, 1, 2], [0, 2, 3]]
+    for name, data, cause in [
+        ("far.ply", quads.replace(b"4 0 1 2 3", b"4 0 1 2 9"), "face indices"),
+        ("nan.ply", quads.replace(b"1 1 0\n", b"1 nan 0\n"), "NaN"),
+        ("cut.ply", quads[:-4], "ascii data ends early"),
+        ("cloud.ply", quads.split(b"element face")[0] + b"end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n",
+         "no 'face' element"),
+    ]:
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(FormatError) as err:
+            read_mesh(tmp_path / name)
+        assert name in str(err.value) and cause in str(err.value) and "\n" not in str(err.value)

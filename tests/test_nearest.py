@@ -328,7 +328,7 @@ def test_single_and_degenerate_only_meshes():
 @pytest.mark.parametrize("mesh", ["icosphere", "nasty"])
 def test_hierarchy_bounds_contain_their_triangles(mesh):
     """White-box check of the certificate: every node's ball and cylinder hold its triangles."""
-    from gsverse_format import nearest as nt
+    from gsverse_format import nearest_reference as nt
 
     v, f = bumpy_icosphere(3, seed=21) if mesh == "icosphere" else nasty_mesh(seed=22)
     tree = nt._build(v[f[:, 0]], v[f[:, 1]], v[f[:, 2]], np.arange(len(f)))

@@ -12,8 +12,9 @@ import pytest
 
 pytest.importorskip("numba")
 
-from gsverse_format import nearest as nt                                  # noqa: E402
-from gsverse_format import nearest_fast as nf                             # noqa: E402
+from gsverse_format import nearest_compiled as nf                         # noqa: E402
+from gsverse_format import nearest_compiled_kernel as nk                  # noqa: E402
+from gsverse_format import nearest_reference as nt                        # noqa: E402
 from gsverse_format.nearest import closest_points_on_triangles, nearest_triangles  # noqa: E402
 
 from test_nearest import bumpy_icosphere, check_result, nasty_mesh, query_points  # noqa: E402
@@ -35,8 +36,8 @@ def both(points, vertices, faces, **kw):
 
 def test_face_records_equal_reference_table():
     v, f = nasty_mesh(seed=1)
-    rec = np.empty((len(f), nf._NREC))
-    nf._records(v, f, np.arange(len(f)), rec)
+    rec = np.empty((len(f), nk.RECORD_WIDTH))
+    nk.face_records(v, f, np.arange(len(f)), rec)
     table = nt._face_table(v[f[:, 0]], v[f[:, 1]], v[f[:, 2]])
     columns = list(range(9)) + list(range(12, 19))       # a, ab, ac, e_v, e_w, degenerate flag
     np.testing.assert_array_equal(rec, table[columns].T)
@@ -51,7 +52,7 @@ def pairwise():
     def run(rec, p, out):
         for i in range(p.shape[0]):
             r = rec[i]
-            v, w, d2 = nf._closest(r, p[i, 0], p[i, 1], p[i, 2])
+            v, w, d2 = nk.closest_point(r, p[i, 0], p[i, 1], p[i, 2])
             out[i, 0] = r[0] + v * r[3] + w * r[6]
             out[i, 1] = r[1] + v * r[4] + w * r[7]
             out[i, 2] = r[2] + v * r[5] + w * r[8]
@@ -64,8 +65,8 @@ def pairwise():
         m = len(p)
         V = np.concatenate([a, b, c])
         F = np.column_stack([np.arange(m), m + np.arange(m), 2 * m + np.arange(m)])
-        rec = np.empty((m, nf._NREC))
-        nf._records(V, F, np.arange(m), rec)
+        rec = np.empty((m, nk.RECORD_WIDTH))
+        nk.face_records(V, F, np.arange(m), rec)
         out = np.empty((m, 7))
         run(rec, np.ascontiguousarray(p, dtype=np.float64), out)
         return out[:, 0:3], out[:, 3:6], out[:, 6]
@@ -101,8 +102,8 @@ def test_float32_outward_rounding():
     @njit(cache=False)
     def run(x, lo, hi):
         for i in range(x.shape[0]):
-            lo[i] = nf._f32_down(x[i])
-            hi[i] = nf._f32_up(x[i])
+            lo[i] = nk.f32_down(x[i])
+            hi[i] = nk.f32_up(x[i])
 
     rng = np.random.default_rng(28)
     x = np.concatenate([rng.normal(size=20000) * 10.0 ** rng.uniform(-45, 39, 20000),
@@ -279,11 +280,11 @@ def test_dispatch(monkeypatch):
     monkeypatch.setattr(nf, "build_tree", lambda *a: used.append(1) or real(*a))
     nearest_triangles(p, v, f)
     assert used == [1]                                   # auto: compiled when numba imports
-    monkeypatch.setenv("GSVERSE_NO_NUMBA", "1")
+    monkeypatch.setenv("GSVERSE_BACKEND", "numpy")
     nearest_triangles(p, v, f)
     assert used == [1]                                   # the environment forces the reference
     nearest_triangles(p, v, f, method="numba")
     assert used == [1, 1]                                # an explicit method wins
-    monkeypatch.setenv("GSVERSE_NO_NUMBA", "0")
+    monkeypatch.setenv("GSVERSE_BACKEND", "auto")
     nearest_triangles(p, v, f)
     assert used == [1, 1, 1]

@@ -29,3 +29,23 @@ def test_console_script_runs():
     cmd = [exe] if exe else [sys.executable, "-m", "gsverse_format.cli.convert"]
     proc = subprocess.run(cmd + ["--version"], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and "gsverse-convert" in proc.stdout
+
+
+def test_every_subpackage_is_listed_for_installation():
+    """pyproject lists its packages explicitly: a new subpackage must be added there, or a
+    regular (non-editable) install would silently miss it."""
+    import tomllib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    config = tomllib.loads((root / "pyproject.toml").read_text(encoding="utf-8"))["tool"]
+    listed = set(config["setuptools"]["packages"])
+    mapped = {name: root / folder for name, folder in config["setuptools"]["package-dir"].items()}
+    found = set()
+    for name, folder in mapped.items():
+        for init in folder.rglob("__init__.py"):
+            rel = init.parent.relative_to(folder)
+            found.add(".".join([name, *rel.parts]) if rel.parts else name)
+    assert found - listed == set(), sorted(found - listed)
+    assert (root / "gsverse_format" / "py.typed").is_file()
+    assert "py.typed" in config["setuptools"]["package-data"]["gsverse_format"]

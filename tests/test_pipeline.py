@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from gsverse_format.cli.convert import main
-from gsverse_format.convert import ConvertOptions, convert
+from gsverse_format.pipeline import ConvertOptions, convert
 from gsverse_format.converters import detect_source
 from gsverse_format.examples import example_mesh, example_splats, write_obj
 from gsverse_format.io.gltf import read_gltf
@@ -83,3 +83,34 @@ def test_detect_source(tmp_path, scene):
     glb = tmp_path / "x.glb"
     glb.write_bytes(b"")
     assert detect_source(str(glb), None)[0] == "khr"
+
+
+def test_sources_are_registered_in_one_table():
+    from gsverse_format.converters import SOURCES, get_source
+    from gsverse_format.errors import UsageError
+
+    assert list(SOURCES) == ["3dgs", "sugar", "trellis", "games", "khr"]
+    assert all(s.detect is not None for s in SOURCES.values())
+    with pytest.raises(UsageError, match="auto, 3dgs, sugar"):
+        get_source("colmap")
+
+
+def test_each_faces_option_has_one_meaning(scene, capsys):
+    folder, *_ = scene
+    ply, out = str(folder / "scene.ply"), str(folder / "o.glb")
+    assert main([ply, out, "--reconstruct-faces", "3"]) == 2
+    assert "--reconstruct-faces must be at least 4" in capsys.readouterr().err
+    assert main([ply, out, "--mesh", str(folder / "mesh.obj"), "--faces", "3"]) == 2
+    assert "--faces must be at least 4" in capsys.readouterr().err
+
+
+def test_frames_change_once_through_the_format_table(scene, tmp_path):
+    from gsverse_format.io.registry import FORMATS, read_asset
+    from gsverse_format.transform import PLY_TO_GLTF
+
+    folder, *_ = scene
+    assert FORMATS[".ply"].frame == "3dgs" and FORMATS[".glb"].frame == "gltf"
+    as_is = read_asset(folder / "scene.ply", frame_change=False).primitives[0].splats
+    turned = read_asset(folder / "scene.ply").primitives[0].splats
+    assert np.array_equal(turned.means, (as_is.means.astype(np.float64) @ PLY_TO_GLTF.T)
+                          .astype(np.float32))

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from gsverse_format.errors import FormatError, UsageError
-from gsverse_format.io.ply import (OPACITY_CLAMP, SH_C0, describe_ply, read_ply_elements,
-                                   read_ply_header, read_ply_mesh, read_splat_ply,
-                                   write_splat_ply)
-from gsverse_format.model import SplatCloud
+from gsverse_format.io.ply import (OPACITY_CLAMP, SH_C0, describe_ply, ply_triangles,
+                                   read_ply_elements, read_ply_header, read_ply_mesh,
+                                   read_splat_ply, write_ply, write_splat_ply)
+from gsverse_format.io.registry import FORMATS as FORMAT_TABLE
+from gsverse_format.model import SplatAsset, SplatCloud, SplatPrimitive
 
 # PLY type name -> numpy code, independent of the module under test.
 TYPES = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4", "uint": "u4",
@@ -374,7 +375,7 @@ def test_mesh_with_faces(tmp_path, fmt):
     path = write(tmp_path, "m.ply", raw_ply(fmt, [("vertex", 4, vprops), ("face", 2, fprops)]))
     data = read_ply_elements(path)
     assert data["face"].dtype["vertex_indices"].shape == (3,)
-    assert np.array_equal(data.triangles(), faces)
+    assert np.array_equal(ply_triangles(data), faces)
     assert np.array_equal(data["face"]["material"], [7, 8])
     mesh = read_ply_mesh(path)
     assert np.array_equal(mesh.faces, faces) and np.array_equal(mesh.vertices, verts)
@@ -389,6 +390,51 @@ def test_mesh_with_faces(tmp_path, fmt):
     assert [list(v) for v in data["face"]["vertex_index"]] == [[0, 1, 2], [0, 1, 3, 2], []]
     assert data["tail"]["v"][0] == -3
     expect_error(path, match="not all triangles", reader=read_ply_mesh)
+
+
+@pytest.mark.parametrize("fmt", ALL_FORMATS)
+def test_mesh_polygons_triangulated_on_request(tmp_path, fmt):
+    verts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0]], np.float32)
+    vprops = [("float", a, verts[:, i]) for i, a in enumerate("xyz")]
+    quads = [("list uchar uint", "vertex_index", [[0, 1, 2, 3], [1, 4, 5, 2]])]
+    path = write(tmp_path, "quads.ply", raw_ply(fmt, [("vertex", 6, vprops), ("face", 2, quads)]))
+    expect_error(path, match="4 vertices each", reader=read_ply_mesh)
+    mesh = read_ply_mesh(path, triangulate=True)      # fan per polygon, in file order
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]]
+    mixed = [("list uchar int", "vertex_indices", [[0, 1, 2], [0, 1, 4, 5, 2], [2, 5, 3]])]
+    path = write(tmp_path, "mixed.ply", raw_ply(fmt, [("vertex", 6, vprops), ("face", 3, mixed)]))
+    mesh = read_ply_mesh(path, triangulate=True)
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 1, 4], [0, 4, 5], [0, 5, 2], [2, 5, 3]]
+    short = [("list uchar int", "vertex_indices", [[0, 1, 2], [0, 1]])]
+    path = write(tmp_path, "short.ply", raw_ply(fmt, [("vertex", 6, vprops), ("face", 2, short)]))
+    expect_error(path, match="face 1 has 2 vertices",
+                 reader=lambda p: read_ply_mesh(p, triangulate=True))
+
+
+def test_mesh_refusals(tmp_path):
+    verts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32)
+    vprops = [("float", a, verts[:, i]) for i, a in enumerate("xyz")]
+
+    def mesh_file(name, faces, vertex=vprops, count=3):
+        elements = [("vertex", count, vertex)] + ([("face", len(faces[0][2]), faces)] if faces else [])
+        return write(tmp_path, name, raw_ply("ascii", elements))
+
+    tri = [("list uchar int", "vertex_indices", [[0, 1, 2]])]
+    expect_error(mesh_file("far.ply", [("list uchar int", "vertex_indices", [[0, 1, 3]])]),
+                 match="face indices", reader=read_ply_mesh)
+    expect_error(mesh_file("neg.ply", [("list uchar int", "vertex_indices", [[0, 1, -1]])]),
+                 match="face indices", reader=read_ply_mesh)
+    expect_error(mesh_file("float.ply", [("list uchar float", "vertex_indices", [[0, 1, 2]])]),
+                 match="list of integers", reader=read_ply_mesh)
+    expect_error(mesh_file("cloud.ply", None), match="no 'face' element", reader=read_ply_mesh)
+    expect_error(mesh_file("noxyz.ply", tri, vertex=vprops[:2]), match="x, y, z", reader=read_ply_mesh)
+    nan = [("float", "x", [0, 1, np.nan])] + vprops[1:]
+    expect_error(mesh_file("nan.ply", tri, vertex=nan), match="1 vertices with NaN",
+                 reader=read_ply_mesh)
+    huge = [("double", "x", [0, 1, 1e300])] + vprops[1:]
+    expect_error(mesh_file("huge.ply", tri, vertex=huge), match="float32 range", reader=read_ply_mesh)
+    expect_error(mesh_file("none.ply", [("list uchar int", "vertex_indices", [])]),
+                 match="no faces", reader=read_ply_mesh)
 
 
 def test_bunny_mesh(shared_data):
@@ -659,3 +705,86 @@ def test_compressed_playcanvas(tmp_path):
                "decompress it first, e.g. with splat-transform")
     assert str(expect_error(path)).endswith(message)
     assert str(expect_error(path, reader=describe_ply)).endswith(message)
+
+
+# --------------------------------------------------------------------------------------------
+# The container writer: any structured arrays, read back unchanged
+
+
+@pytest.mark.parametrize("fmt", ALL_FORMATS)
+def test_write_ply_round_trip(tmp_path, fmt):
+    rng = np.random.default_rng(5)
+    codes = ["i1", "u1", "i2", "u2", "i4", "u4", "f4", "f8"]
+    thing = np.empty(6, [(f"p{i}", c) for i, c in enumerate(codes)] + [("tri", "<i4", (3,))])
+    for i, c in enumerate(codes):
+        if c[0] == "f":
+            thing[f"p{i}"] = rng.normal(size=6) * 10.0 ** rng.integers(-30, 30, 6)
+        else:
+            info = np.iinfo(c)
+            thing[f"p{i}"] = [info.min, info.max, 0, 1, info.max // 3, -1 if info.min else 2]
+    thing["tri"] = rng.integers(-5, 1000, (6, 3))
+    ragged = np.empty(3, [("idx", object), ("w", "f4")])
+    ragged["idx"] = [np.array([1, 2, 3], np.uint16), np.zeros(0, np.uint16), np.arange(300, dtype=np.uint16)]
+    ragged["w"] = [0.5, -1.0, 3.25]
+    wide = np.zeros(2, [("v", "u1", (300,))])
+    wide["v"] = rng.integers(0, 255, (2, 300))
+    empty = np.zeros(0, [("a", "f4")])
+    out = tmp_path / "w.ply"
+    write_ply(out, {"thing": thing, "ragged": ragged, "wide": wide, "empty": empty}, format=fmt,
+              comments=["made here", ""], obj_info=["x"])
+    data = read_ply_elements(out)
+    assert data.format == fmt and data.comments == ["made here", ""] and data.header.obj_info == ["x"]
+    assert list(data.elements) == ["thing", "ragged", "wide", "empty"]
+    assert data["thing"].dtype == thing.dtype.newbyteorder("=") and np.array_equal(data["thing"], thing)
+    assert data["ragged"]["w"].tolist() == [0.5, -1.0, 3.25]
+    for got, want in zip(data["ragged"]["idx"], ragged["idx"]):
+        assert got.dtype == np.uint16 and np.array_equal(got, want)
+    assert np.array_equal(data["wide"]["v"], wide["v"]) and len(data["empty"]) == 0
+    header = read_ply_header(out)
+    assert header.element("wide").property("v").count_type == "u4"
+    assert header.element("thing").property("tri").count_type == "u1"
+
+
+def test_write_ply_refusals(tmp_path):
+    out = tmp_path / "r.ply"
+    good = np.zeros(2, [("a", "f4")])
+    for elements, kw, match in [
+        ({"v": np.zeros(2, [("a", "i8")])}, {}, "cannot store"),
+        ({"v": np.zeros(2, [("has space", "f4")])}, {}, "property name"),
+        ({"bad name": good}, {}, "element name"),
+        ({"v": np.zeros(2, [("m", "f4", (2, 2))])}, {}, "one-dimensional"),
+        ({"v": np.zeros((2, 2), [("a", "f4")])}, {}, "1-D structured"),
+        ({"v": np.zeros(2, "f4")}, {}, "1-D structured"),
+        ({"v": good}, {"format": "binary"}, "unknown PLY format"),
+        ({"v": good}, {"comments": ["two\nlines"]}, "one line"),
+    ]:
+        with pytest.raises(UsageError, match=match) as info:
+            write_ply(out, elements, **kw)
+        assert str(info.value).startswith(str(out)) and "\n" not in str(info.value)
+    assert not out.exists() and not [p for p in os.listdir(tmp_path) if p.startswith(".tmp")]
+
+
+# --------------------------------------------------------------------------------------------
+# The format table entry: a splat asset in the file's own (3DGS) frame
+
+
+def test_registered_format(tmp_path):
+    fmt = FORMAT_TABLE[".ply"]
+    assert fmt.name == "ply" and fmt.frame == "3dgs"
+    src = splat_file(tmp_path, n=20, degree=1, name="scene.ply")
+    asset = fmt.read(src)
+    cloud = read_splat_ply(src)
+    assert len(asset.primitives) == 1 and asset.primitives[0].name == "scene"
+    assert asset.primitives[0].anchoring is None
+    assert np.array_equal(asset.primitives[0].splats.means, cloud.means)        # no rotation
+    assert np.array_equal(asset.primitives[0].splats.rotations, cloud.rotations)
+    other = read_splat_ply(splat_file(tmp_path, n=7, degree=0, name="other.ply", seed=4))
+    out = tmp_path / "both.ply"
+    fmt.write(SplatAsset([SplatPrimitive(cloud), SplatPrimitive(other)]), out)
+    back = read_splat_ply(out)
+    assert len(back) == 27 and back.sh_degree == 1
+    assert np.array_equal(back.means, np.concatenate([cloud.means, other.means]))
+    with pytest.raises(UsageError, match="no splats"):
+        fmt.write(SplatAsset([]), tmp_path / "none.ply")
+    with pytest.raises(UsageError):
+        fmt.write(asset, src, protect=(src,))

@@ -1,6 +1,6 @@
 """The fast remap agrees with the float64 reference within the stated float32 bounds.
 
-Bounds (``gsverse_format.remap_fast.float32_error_bounds``, u = 2⁻²⁴):
+Bounds (``gsverse_format.remap_bounds.float32_error_bounds``, u = 2⁻²⁴):
 mean ``16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
 ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest;
 ``local`` covariance ``64 u ‖A‖_F² Σ s_l²`` (A = [E_c C_r⁻¹ | m], k R_c, or R_c on faces
@@ -12,13 +12,15 @@ import numpy as np
 import pytest
 
 from gsverse_format import remap_fast as rf
+from gsverse_format.backend import numba_available
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import prepare_rest, remap
+from gsverse_format.remap_reference import prepare_rest, remap
+from gsverse_format.remap_bounds import float32_error_bounds
 
 from helpers import bumpy_sphere, random_rotation, surface_splats
 
-needs_numba = pytest.mark.skipif(not rf.numba_available(), reason="numba not installed")
+needs_numba = pytest.mark.skipif(not numba_available(), reason="numba not installed")
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +72,7 @@ def _twist(v: np.ndarray, turns: float) -> np.ndarray:
 
 def _check_against_reference(anchoring, vertices, out):
     ref = remap(anchoring, vertices)
-    mean_bound, cov_bound = rf.float32_error_bounds(anchoring, vertices)
+    mean_bound, cov_bound = float32_error_bounds(anchoring, vertices)
     mean_err = np.linalg.norm(out.means.astype(np.float64) - ref.means, axis=1)
     cov_err = np.linalg.norm(out.covariances() - ref.covariances, axis=(1, 2))
     assert np.all(np.isfinite(out.means)) and np.all(np.isfinite(out.cov6))
@@ -219,14 +221,14 @@ def test_numpy_backend_matches_reference(mesh, anchorings, monkeypatch):
         ref = remap(anchoring, vertices)
         assert np.array_equal(out.means, ref.means.astype(np.float32))
         assert np.allclose(out.covariances(), ref.covariances, rtol=1e-6, atol=1e-12)
-    monkeypatch.setenv("GSVERSE_REMAP_BACKEND", "numpy")
+    monkeypatch.setenv("GSVERSE_BACKEND", "numpy")
     assert rf.FastRemapper(anchorings["games"]).backend == "numpy"
     out = rf.remap_auto(anchorings["games"], vertices)
     assert out.means.dtype == np.float32 and out.cov6.shape == (len(anchorings["games"].anchors), 6)
 
 
 def test_auto_selects_numba_when_importable(anchorings):
-    expected = "numba" if rf.numba_available() else "numpy"
+    expected = "numba" if numba_available() else "numpy"
     assert rf.FastRemapper(anchorings["rigid"]).backend == expected
 
 

@@ -13,7 +13,7 @@ fast path must give:
 * deterministic results (bit-identical on repetition, with 1 or several threads, and whether
   the splats are sorted by face or not);
 * and the float32 result must lie within the stated bound of the float64 one
-  (``gsverse_format.remap_fast.float32_error_bounds``):
+  (``gsverse_format.remap_bounds.float32_error_bounds``):
   ``|Δμ| <= 16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
   ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest,
   ``‖ΔΣ‖_F <= 64 u ‖A‖_F² Σ s_l²`` (``local``; A = [E_c C_r⁻¹ | m], k R_c or R_c) and
@@ -36,11 +36,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gsverse_format import remap_fast as rf
+from gsverse_format.backend import numba_available
 from gsverse_format.frames import EPS_DEGENERATE
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import prepare_rest, remap
+from gsverse_format.remap_reference import prepare_rest, remap
+from gsverse_format.remap_bounds import F32_UNIT_ROUNDOFF, float32_error_bounds
 
-U = rf.F32_UNIT_ROUNDOFF
+U = F32_UNIT_ROUNDOFF
 SETTINGS = settings(max_examples=int(os.environ.get("GSVERSE_STABILITY_EXAMPLES", "60")),
                     deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
@@ -204,7 +206,7 @@ def _check(anchoring: Anchoring, vertices: np.ndarray) -> None:
     assert np.array_equal(ref.means, again.means)
     assert np.array_equal(ref.covariances, again.covariances)
 
-    if not rf.numba_available():
+    if not numba_available():
         return
     import numba
 
@@ -232,7 +234,7 @@ def _check(anchoring: Anchoring, vertices: np.ndarray) -> None:
     assert np.array_equal(by_face.means, out.means[order])
     assert np.array_equal(by_face.cov6, out.cov6[order])
 
-    mean_bound, cov_bound = rf.float32_error_bounds(anchoring, vertices)
+    mean_bound, cov_bound = float32_error_bounds(anchoring, vertices)
     mean_exempt, cov_exempt = _exempt(anchoring, vertices)
     mean_err = np.linalg.norm(out.means - ref.means, axis=1)
     cov_err = np.linalg.norm(cov - ref.covariances, axis=(1, 2))
@@ -282,7 +284,7 @@ def test_rest_pose_of_huge_offset_mesh_is_reproduced_to_float32(profile):
     assert np.max(rel) <= 1e-5
 
 
-@pytest.mark.skipif(not rf.numba_available(), reason="numba not installed")
+@pytest.mark.skipif(not numba_available(), reason="numba not installed")
 def test_no_exemption_needed_for_affine_and_means_at_the_threshold():
     """Current triangles within a few roundings of a = ε_deg ℓ² (either side, as each
     implementation decides it): the affine law's means and covariances and the rigid law's means
@@ -307,7 +309,7 @@ def test_no_exemption_needed_for_affine_and_means_at_the_threshold():
         anchoring = Anchoring(mesh, anchors)
         ref = remap(anchoring, cur_v)
         out = rf.FastRemapper(anchoring, backend="numba").remap(cur_v)
-        mean_bound, cov_bound = rf.float32_error_bounds(anchoring, cur_v)
+        mean_bound, cov_bound = float32_error_bounds(anchoring, cur_v)
         mean_err = np.linalg.norm(out.means - ref.means, axis=1)
         assert np.all(mean_err <= mean_bound), (law, float(np.max(mean_err / mean_bound)))
         if law == "affine":

@@ -23,8 +23,10 @@ from scipy.spatial.transform import Rotation
 
 pytest.importorskip("pxr")
 
+from gsverse_format.codes import Code  # noqa: E402
 from gsverse_format.errors import FormatError, UsageError  # noqa: E402
 from gsverse_format.io import usd as usd_io  # noqa: E402
+from gsverse_format.io.usd import isolation, reader  # noqa: E402
 
 try:  # register before anything in this process uses the USD schema registry
     usd_io.register_schema()
@@ -37,13 +39,14 @@ from gsverse_format.examples import make_example  # noqa: E402
 from gsverse_format.io.gltf import read_gltf, write_gltf  # noqa: E402
 from gsverse_format.io.ply import read_splat_ply, write_splat_ply  # noqa: E402
 from gsverse_format.io.registry import read_asset, write_asset  # noqa: E402
-from gsverse_format.io.usd import (USD_SUFFIXES, BakedPoses, UsdReadWarning,  # noqa: E402
-                                   check_usd, load_poses, read_usd, write_usd)
+from gsverse_format.io.usd import (USD_SUFFIXES, BakedPoses, UsdInternalError,  # noqa: E402
+                                   UsdReadWarning, check_usd, load_poses, read_usd, write_usd)
 from gsverse_format.model import (Anchoring, SplatAsset, SplatCloud,  # noqa: E402
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap import remap  # noqa: E402
+from gsverse_format.remap_reference import remap  # noqa: E402
 from gsverse_format.transform import rotate_mesh, rotate_splats  # noqa: E402
 
+from usd_validation_assets import BROKEN_READER  # noqa: E402
 from helpers import bumpy_sphere, max_rel_cov_error, random_splats, surface_splats  # noqa: E402
 from test_convert_cli import assert_ply_roundtrip  # noqa: E402
 from test_gltf import (_anchored_asset, _assert_anchoring_equal, _assert_cloud_equal,  # noqa: E402
@@ -529,15 +532,18 @@ def test_check_usd_reports_problems_with_usd_paths(tmp_path):
     bad.write_text(text, encoding="utf-8")
     problems = check_usd(bad)
     found = {(p.severity, p.location, p.code) for p in problems}
-    assert ("error", "", "MISSING_UP_AXIS") in found
-    assert ("error", "/Asset/body.sortingModeHint", "SORTING_MODE") in found
-    assert ("error", "/Asset/body.gsverse:anchor:rho", "EXCLUDED_ATTRIBUTE") in found
-    assert ("error", "/Asset/bg.gsverse:colorSpace", "CUSTOM_ATTRIBUTE") in found
-    assert ("error", "/Asset/bg.gsverse:colorSpace", "TYPE_MISMATCH") in found
-    assert ("warning", "/Asset/anchor_mesh.subdivisionScheme", "MESH_SUBDIVISION") in found
-    codes = {p.code for p in problems}
-    assert "usd:usdGeomValidators:StageMetadataChecker" in codes        # OpenUSD agrees
-    assert "usd:usdValidation:AttributeTypeMismatch" in codes           # schema registered there
+    assert ("error", "", Code.USD_UP_AXIS_MISSING) in found
+    assert ("error", "/Asset/body.sortingModeHint", Code.USD_SORTING_MODE) in found
+    assert ("error", "/Asset/body.gsverse:anchor:rho", Code.USD_PROPERTY_EXCLUDED) in found
+    assert ("error", "/Asset/bg.gsverse:colorSpace", Code.USD_CUSTOM_PROPERTY) in found
+    assert ("error", "/Asset/bg.gsverse:colorSpace", Code.USD_TYPE_MISMATCH) in found
+    assert ("warning", "/Asset/anchor_mesh.subdivisionScheme", Code.USD_MESH_SUBDIVISION) in found
+    assert all(isinstance(p.code, Code) for p in problems)
+    validators = {(p.code, p.validator) for p in problems if p.validator}
+    assert (Code.USD_VALIDATOR_ERROR,                                   # OpenUSD agrees
+            "usdGeomValidators:StageMetadataChecker") in validators
+    assert (Code.USD_VALIDATOR_ERROR,                                   # schema registered there
+            "usdValidation:AttributeTypeMismatch") in validators
     assert all(str(p).startswith(p.severity) for p in problems)
     # read_usd ignores the excluded attribute (warning) and reads the rest.
     asset, messages = _read_warned(bad)
@@ -584,7 +590,7 @@ def test_check_usd_plain_foreign_file(tmp_path):
     '''), encoding="utf-8")
     problems = check_usd(path)
     assert not [p for p in problems if p.severity == "error"], problems
-    assert {"PLAIN_SPLATS", "SORTING_MODE"} <= {p.code for p in problems}
+    assert {Code.USD_PLAIN_SPLATS, Code.USD_SORTING_MODE} <= {p.code for p in problems}
     asset, messages = _read_warned(path)
     c = asset.primitives[0].splats
     assert c.color_space == "srgb_rec709_display" and asset.primitives[0].name == "gs"
@@ -788,11 +794,36 @@ def test_isolated_reading_survives_a_crashing_usd_library(tmp_path, monkeypatch)
     (tmp_path / "bad.usda").write_text("#usda 1.0\n(")
     with pytest.raises(FormatError, match="not a readable USD file"):
         read_usd(tmp_path / "bad.usda", isolate=True)
-    monkeypatch.setattr(usd_io, "_CHILD_CODE", "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)")
+    monkeypatch.setattr(isolation, "CHILD_CODE",
+                        "import os, signal; os.kill(os.getpid(), signal.SIGSEGV)")
     with pytest.raises(FormatError, match="crashed reading it .SIGSEGV."):
         read_usd(good, isolate=True)
     with pytest.raises(FormatError, match="crashed"):
         check_usd(good)
+
+
+def test_an_unexpected_exception_is_a_crash_not_bad_input(tmp_path, monkeypatch):
+    """A bug in the reader (an injected KeyError) is never reported as a malformed file: in this
+    process it propagates as it is; from the child it comes back as UsdInternalError naming
+    its type."""
+    good = tmp_path / "good.usda"
+    write_usd(_tiny_asset(), good)
+
+    def broken(self):
+        raise KeyError("injected")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(reader.StageReader, "read", broken)
+        with pytest.raises(KeyError, match="injected"):
+            read_usd(good)
+        with pytest.raises(KeyError, match="injected"):
+            check_usd(good, isolate=False)
+    monkeypatch.setattr(isolation, "CHILD_CODE", BROKEN_READER + isolation.CHILD_CODE)
+    for call in (lambda: read_usd(good, isolate=True), lambda: check_usd(good)):
+        with pytest.raises(UsdInternalError, match="KeyError in the USD child process") as err:
+            call()
+        assert err.value.type_name == "KeyError" and "injected" in str(err.value)
+        assert not isinstance(err.value, FormatError)
 
 
 @pytest.mark.slow
@@ -990,7 +1021,7 @@ def test_composition_arcs_leaving_the_folder_are_refused(tmp_path, arc):
     bad = _edit(base, 'defaultPrim = "Asset"', f'defaultPrim = "Asset"\n    {arc}', "bad.usda")
     message = _expect_read_error(bad)
     assert "folder" in message or "URI schemes" in message or "absolute path" in message
-    assert check_usd(bad)[0].code == "LAYER_OUTSIDE_FOLDER"
+    assert check_usd(bad)[0].code == Code.USD_LAYER_OUTSIDE_FOLDER
     with pytest.raises(FormatError):
         read_usd(bad, isolate=True)
 

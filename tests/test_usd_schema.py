@@ -227,6 +227,27 @@ def test_plug_info_declares_the_two_api_schemas():
         assert entry["apiSchemaCanOnlyApplyTo"] == ["ParticleField3DGaussianSplat"]
 
 
+def test_package_tables_match_the_schemas():
+    """The USD package's attribute names (from gsverse_format.vocabulary) and value types are
+    those the schemas declare, and the per-profile rules use the vocabulary's profiles."""
+    from pxr import Sdf
+
+    from gsverse_format.io.usd import schema as S
+    from gsverse_format.vocabulary import ANCHOR_FIELDS, PROFILES, USD_PROFILE, allowed_fields
+
+    assert set(S.USD_TYPES) == {f.attribute for f in ANCHOR_FIELDS}
+    assert {name: str(getattr(Sdf.ValueTypeNames, t)) for name, t in
+            S.API_ATTRIBUTE_TYPES.items()} == {name: a[0] for name, a in ATTRIBUTES.items()}
+    assert [S.MESH_REL] == RELATIONSHIPS and [S.COLOR_SPACE_ATTR] == COLOR_SPACE_API
+    for f in ANCHOR_FIELDS:
+        vt = getattr(Sdf.ValueTypeNames, S.USD_TYPES[f.attribute].sdf).type.pythonClass
+        assert vt is not None and vt.__name__ == S.USD_TYPES[f.attribute].vt, f.attribute
+    assert ATTRIBUTES[USD_PROFILE][3] == list(PROFILES)
+    for profile in PROFILES:
+        assert {f.usd for f in S.usd_required(profile)} <= {f.usd for f in allowed_fields(profile)}
+        assert S.usd_allowed_names(profile) <= set(S.anchor_attribute_names())
+
+
 def test_generated_schema_matches_source():
     """generatedSchema.usda holds exactly the classes and properties schema.usda declares."""
     out = _run('''

@@ -8,6 +8,7 @@ import pathlib
 import numpy as np
 import pytest
 
+from gsverse_format.codes import Code
 from gsverse_format.validators import cli, validate as validate_module
 from gsverse_format.validators.catalogue import render_markdown
 from gsverse_format.validators.container import Options
@@ -17,7 +18,7 @@ from gsverse_format.validators.validate import validate_file
 import validation_assets as va
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
-from gsverse_format.remap import remap
+from gsverse_format.remap_reference import remap
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: Codes glTF files can trigger (the USD group is tested in test_validate_usd.py).
@@ -40,6 +41,11 @@ def _run(trigger: va.Trigger, monkeypatch=None):
 
 
 # ---------------------------------------------------------------------------- catalogue
+
+def test_catalogue_has_exactly_the_issue_codes():
+    assert set(CATALOGUE) == set(Code)
+    assert all(type(code) is Code and info.code is code for code, info in CATALOGUE.items())
+
 
 def test_every_code_has_a_trigger():
     assert set(va.TRIGGERS) == set(GLTF_CODES)

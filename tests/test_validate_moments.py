@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import (covariance_entries, covariances_from, iter_moments, remap,
+from gsverse_format.remap_reference import (covariance_entries, covariances_from, iter_moments, remap,
                                   remap_moments)
 
 from helpers import bumpy_sphere, surface_splats

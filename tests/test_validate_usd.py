@@ -186,6 +186,18 @@ def test_cli_on_usd_text_json_and_exit_status(folder, capsys):
     assert cli.main([str(folder / "garbage.usda")]) == 2
 
 
+def test_a_crash_in_the_usd_reader_is_an_internal_error(folder, monkeypatch):
+    """An unexpected exception in the USD child process is a validator crash naming its type,
+    never a finding about the file."""
+    from gsverse_format.io.usd import isolation
+
+    path = ua.clean_usd_assets(folder)[0]
+    monkeypatch.setattr(isolation, "CHILD_CODE", ua.BROKEN_READER + isolation.CHILD_CODE)
+    report = validate_file(path)
+    assert report.codes() == {"INTERNAL_ERROR"}, [(f.code, f.message) for f in report.findings]
+    assert "KeyError" in report.findings[0].message and report.exit_status == 1
+
+
 def test_validator_never_writes_and_survives_byte_flips(folder):
     good = ua.clean_usd_assets(folder)[1]  # .usdc
     data = good.read_bytes()

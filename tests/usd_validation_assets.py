@@ -20,6 +20,12 @@ from validation_assets import Trigger, games_asset, local_asset
 USD_TRIGGERS: dict[str, Callable[[pathlib.Path], Trigger]] = {}
 BODY, STATIC, MESH = "/Asset/body", "/Asset/static", "/Asset/anchor_mesh"
 
+#: Code for the USD child process (prepended to ``isolation.CHILD_CODE``) that breaks the
+#: reader with an unexpected exception: a bug, which must be reported as a crash.
+BROKEN_READER = ("from gsverse_format.io.usd import reader\n"
+                 "def broken(self):\n    raise KeyError('injected')\n"
+                 "reader.StageReader.read = broken\n")
+
 
 def usd_trigger(code: str):
     def register(fn):

@@ -3,9 +3,9 @@ and the rest-pose consistency of spec §Rest-pose consistency.
 
 The anchor mesh is checked once per anchor primitive (mode, positions, indices; degenerate,
 sliver and duplicate triangles). For every anchored splat primitive the anchor accessors are
-checked against the spec's format table (``gsverse_format.io.gltf.ANCHOR_ACCESSOR_FORMATS``),
+checked against the spec's format table (``gsverse_format.vocabulary.ANCHOR_FIELDS``),
 their values per profile, and finally the reference remap at the rest mesh
-(:func:`gsverse_format.remap.iter_moments`) is compared with the stored rest pose.
+(:func:`gsverse_format.remap_reference.iter_moments`) is compared with the stored rest pose.
 """
 from __future__ import annotations
 
@@ -13,19 +13,25 @@ from typing import Any
 
 import numpy as np
 
-from gsverse_format.io import gltf as G
+from gsverse_format.codes import Code
+from gsverse_format.io.gltf import AccessorLayout, describe_format, format_allowed
 from gsverse_format.model import TriangleMesh
+from gsverse_format.vocabulary import (ANCHOR_FIELDS, EXTENSION, FIELDS_BY_KEY, FLOAT, KHR,
+                                       PROFILES, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
+                                       required_fields)
 
 from .container import Context
-from .khr import SplatData, describe_format, format_allowed, quantization_step
+from .khr import SplatData, quantization_step
 from .schema import schema_errors
-from .values import (ANCHOR_PROPERTIES, AnchorMesh, AnchorValues, check_anchor_values,
-                     check_finite, check_triangles)
+from .values import (AnchorMesh, AnchorValues, check_anchor_values, check_finite,
+                     check_triangles)
 
 __all__ = ["AnchorMesh", "check_anchor", "anchor_mesh"]
 
-ANCHOR = G.ANCHOR
-_INDEX_TYPES = (G.UNSIGNED_BYTE, G.UNSIGNED_SHORT, G.UNSIGNED_INT)
+ANCHOR = EXTENSION
+_INDEX_TYPES = (UNSIGNED_BYTE, UNSIGNED_SHORT, UNSIGNED_INT)
+#: The properties every profile has (checked when the profile itself is not valid).
+_COMMON = tuple(f.key for f in ANCHOR_FIELDS if set(f.profiles) == set(PROFILES))
 
 
 def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
@@ -39,19 +45,19 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
     prim = ctx.array("meshes")[m]["primitives"][p]
     mode = prim.get("mode", 4)
     if mode != 4:
-        ctx.issues.add("ANCHOR_MESH_NOT_TRIANGLES", f"the anchor primitive has mode {mode!r}; "
+        ctx.issues.add(Code.ANCHOR_MESH_NOT_TRIANGLES, f"the anchor primitive has mode {mode!r}; "
                        f"it must be TRIANGLES (4)", pointer=f"{pointer}/mode")
         return result
     attrs = prim.get("attributes", {})
     if "POSITION" not in attrs:
-        ctx.issues.add("ANCHOR_MESH_POSITION_INVALID", "the anchor primitive has no POSITION",
+        ctx.issues.add(Code.ANCHOR_MESH_POSITION_INVALID, "the anchor primitive has no POSITION",
                        pointer=f"{pointer}/attributes")
         return result
     lay = ctx.accessor(attrs["POSITION"], f"{pointer}/attributes/POSITION")
     if lay is None:
         return result
-    if not format_allowed(lay, (("VEC3",), ((G.FLOAT, False),))):
-        ctx.issues.add("ANCHOR_MESH_POSITION_INVALID", f"anchor POSITION is "
+    if not format_allowed(lay, "VEC3", [(FLOAT, False)]):
+        ctx.issues.add(Code.ANCHOR_MESH_POSITION_INVALID, f"anchor POSITION is "
                        f"{describe_format(lay)}; it must be VEC3 FLOAT",
                        pointer=f"{pointer}/attributes/POSITION")
         return result
@@ -65,7 +71,7 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
         if ilay is None:
             return result
         if ilay.gtype != "SCALAR" or ilay.component_type not in _INDEX_TYPES or ilay.normalized:
-            ctx.issues.add("ANCHOR_MESH_INDICES_INVALID", f"anchor indices are "
+            ctx.issues.add(Code.ANCHOR_MESH_INDICES_INVALID, f"anchor indices are "
                            f"{describe_format(ilay)}; they must be SCALAR UNSIGNED_BYTE, "
                            f"UNSIGNED_SHORT or UNSIGNED_INT", pointer=ipointer)
             return result
@@ -74,20 +80,20 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
             return result
         idx = raw[:, 0].astype(np.int64)
         if len(idx) % 3:
-            ctx.issues.add("ANCHOR_MESH_INDICES_INVALID", f"{len(idx)} anchor indices, not a "
+            ctx.issues.add(Code.ANCHOR_MESH_INDICES_INVALID, f"{len(idx)} anchor indices, not a "
                            f"multiple of 3", pointer=ipointer)
             return result
         bad = np.flatnonzero(idx >= len(vertices))
         if bad.size:
-            ctx.issues.add("ANCHOR_MESH_INDICES_INVALID", f"{bad.size} anchor indices are out of "
-                           f"range for {len(vertices)} vertices", pointer=ipointer,
+            ctx.issues.add(Code.ANCHOR_MESH_INDICES_INVALID, f"{bad.size} anchor indices are out "
+                           f"of range for {len(vertices)} vertices", pointer=ipointer,
                            count=int(bad.size),
                            examples=ctx.examples(bad, index=np.arange(len(idx)), value=idx))
             return result
         faces = idx.reshape(-1, 3)
     else:
         if len(vertices) % 3:
-            ctx.issues.add("ANCHOR_MESH_INDICES_INVALID", f"the anchor primitive is not indexed "
+            ctx.issues.add(Code.ANCHOR_MESH_INDICES_INVALID, f"the anchor primitive is not indexed "
                            f"and has {len(vertices)} vertices, not a multiple of 3",
                            pointer=f"{pointer}/attributes/POSITION")
             return result
@@ -98,11 +104,11 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
     users = [n for n, node in enumerate(ctx.array("nodes"))
              if isinstance(node, dict) and node.get("mesh") == m]
     for n in users:
-        ctx.issues.add("ANCHOR_MESH_INSTANTIATED", f"node {n} instantiates the anchor mesh "
+        ctx.issues.add(Code.ANCHOR_MESH_INSTANTIATED, f"node {n} instantiates the anchor mesh "
                        f"{m}; KHR-only viewers draw its triangles over the splats",
                        pointer=f"/nodes/{n}/mesh")
     if len(users) > 1:
-        ctx.issues.add("ANCHOR_MESH_MULTIPLE_INSTANCES", f"{len(users)} nodes ("
+        ctx.issues.add(Code.ANCHOR_MESH_MULTIPLE_INSTANCES, f"{len(users)} nodes ("
                        f"{', '.join(map(str, users))}) instantiate the anchor mesh {m}; at most "
                        f"one may (which instance drives the splats would be ambiguous)",
                        pointer=f"/nodes/{users[1]}/mesh")
@@ -112,7 +118,7 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
 def _index(ctx: Context, value: Any, size: int, what: str, pointer: str) -> int | None:
     if isinstance(value, int) and not isinstance(value, bool) and 0 <= value < size:
         return value
-    ctx.issues.add("UNRESOLVED_REFERENCE", f"{what} {value!r:.40} does not exist (there are "
+    ctx.issues.add(Code.UNRESOLVED_REFERENCE, f"{what} {value!r:.40} does not exist (there are "
                    f"{size})", pointer=pointer)
     return None
 
@@ -121,7 +127,7 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
     """Check the anchor extension object ``obj`` of ``splat`` (found at ``pointer``)."""
     errors = schema_errors(obj, pointer)
     for where, message in errors:
-        ctx.issues.add("ANCHOR_SCHEMA_VIOLATION", f"{ANCHOR}: {message}", pointer=where)
+        ctx.issues.add(Code.ANCHOR_SCHEMA_VIOLATION, f"{ANCHOR}: {message}", pointer=where)
     if not isinstance(obj, dict):
         return
     bad_props = {where[len(pointer) + 1:].split("/")[0] for where, _ in errors if where != pointer}
@@ -138,17 +144,17 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
             if "primitive" not in bad_props:
                 p = _index(ctx, p_value, len(prims), "anchor primitive", f"{pointer}/primitive")
             if m == splat.mesh:
-                ctx.issues.add("ANCHOR_MESH_SAME_AS_SPLAT", f"the anchor primitive is in mesh "
+                ctx.issues.add(Code.ANCHOR_MESH_SAME_AS_SPLAT, f"the anchor primitive is in mesh "
                                f"{m}, the splat primitive's own mesh", pointer=f"{pointer}/mesh")
             if p is not None:
                 mesh_info = anchor_mesh(ctx, m, p)
 
-    profile = obj.get("profile") if obj.get("profile") in ("local", "games") else None
-    props = list(ANCHOR_PROPERTIES.get(profile, ("faceIndex", "barycentrics")))
+    profile = obj.get("profile") if obj.get("profile") in PROFILES else None
+    props = [f.key for f in required_fields(profile)] if profile else list(_COMMON)
     vertex_attributes = set(splat.attributes.values())
 
     # -- accessors --------------------------------------------------------------------
-    layouts: dict[str, G.AccessorLayout] = {}
+    layouts: dict[str, AccessorLayout] = {}
     for prop in props:
         if prop not in obj or prop in bad_props:
             continue
@@ -156,25 +162,25 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
         lay = ctx.accessor(obj[prop], ppointer)
         if lay is None:
             continue
-        fmt = G.ANCHOR_ACCESSOR_FORMATS[prop]
-        if not format_allowed(lay, fmt):
-            ctx.issues.add("ANCHOR_ACCESSOR_FORMAT", f"{prop} is {describe_format(lay)}; see the "
-                           f"spec's table of accessor component types", pointer=ppointer)
+        spec = FIELDS_BY_KEY[prop]
+        if not format_allowed(lay, spec.accessor, spec.formats):
+            ctx.issues.add(Code.ANCHOR_ACCESSOR_FORMAT, f"{prop} is {describe_format(lay)}; see "
+                           f"the spec's table of accessor component types", pointer=ppointer)
             continue
         if splat.count is not None and lay.count != splat.count:
-            ctx.issues.add("ANCHOR_ACCESSOR_COUNT", f"{prop} has {lay.count} elements but the "
+            ctx.issues.add(Code.ANCHOR_ACCESSOR_COUNT, f"{prop} has {lay.count} elements but the "
                            f"primitive has {splat.count} splats", pointer=ppointer)
             continue
         view = ctx.array("bufferViews")[lay.view]
         if view.get("target") is not None and lay.accessor not in vertex_attributes:
-            ctx.issues.add("ANCHOR_ACCESSOR_TARGET", f"bufferViews[{lay.view}] of {prop} sets "
+            ctx.issues.add(Code.ANCHOR_ACCESSOR_TARGET, f"bufferViews[{lay.view}] of {prop} sets "
                            f"target {view.get('target')}; anchor data are not vertex attributes",
                            pointer=ppointer)
         layouts[prop] = lay
-    scale_accessor = splat.attributes.get(f"{G.KHR}:SCALE")
+    scale_accessor = splat.attributes.get(f"{KHR}:SCALE")
     if profile == "local" and "localScale" in layouts and scale_accessor is not None \
             and layouts["localScale"].accessor != scale_accessor:
-        ctx.issues.add("LOCAL_SCALE_NOT_SHARED", f"localScale uses accessor "
+        ctx.issues.add(Code.LOCAL_SCALE_NOT_SHARED, f"localScale uses accessor "
                        f"{layouts['localScale'].accessor}, not the SCALE accessor "
                        f"{scale_accessor}", pointer=f"{pointer}/localScale")
     if splat.count is None or (ctx.options.max_splats is not None

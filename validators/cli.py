@@ -15,7 +15,8 @@ import json
 import re
 import sys
 
-from gsverse_format import __version__
+from gsverse_format.version import __version__
+from gsverse_format.codes import Code
 
 from .container import Options
 from .issues import CATALOGUE, Severity, parse_severity
@@ -86,17 +87,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _code(name: str, where: str) -> str:
+def _code(name: str, where: str) -> Code:
     code = str(name).strip().upper()
     if code not in CATALOGUE:
-        close = difflib.get_close_matches(code, list(CATALOGUE), n=1)
+        close = difflib.get_close_matches(code, [str(c) for c in CATALOGUE], n=1)
         hint = f" (did you mean {close[0]}?)" if close else " (see --list-codes)"
         raise _Usage(f"{where}: unknown issue code {name!r}{hint}")
-    return code
+    return Code(code)
 
 
-def _overrides(args: argparse.Namespace) -> tuple[dict[str, Severity | None], int | None]:
-    overrides: dict[str, Severity | None] = {}
+def _overrides(args: argparse.Namespace) -> tuple[dict[Code, Severity | None], int | None]:
+    overrides: dict[Code, Severity | None] = {}
     max_issues = args.max_issues or None  # 0 = no cap, as in the Khronos validator
     if args.config:
         try:
@@ -140,7 +141,20 @@ def _overrides(args: argparse.Namespace) -> tuple[dict[str, Severity | None], in
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status.
+
+    Each file's problems, including an unexpected exception while checking it, are reported
+    in its report (INTERNAL_ERROR); an unexpected exception outside the checks is one line on
+    stderr naming its type, with exit status 2.
+    """
+    try:
+        return _main(argv)
+    except Exception as err:  # process boundary: a bug, reported as one, never as bad input
+        sys.stderr.write(f"{VALIDATOR_NAME}: internal error: {type(err).__name__}: {err}\n")
+        return 2
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -15,7 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from gsverse_format.io import gltf as G
+from gsverse_format.codes import Code
+from gsverse_format.io.gltf import (AccessorLayout, Accessors, Document, GltfFormatError,
+                                    header_problems, load_document)
 
 from .context import CheckContext, Options
 from .issues import Issues
@@ -30,9 +32,9 @@ GLTF_MIME = "model/gltf+json"
 class Context(CheckContext):
     """A loaded document and what the container checks found out about its parts."""
 
-    document: G.Document
-    layouts: dict[int, G.AccessorLayout] = field(default_factory=dict)
-    unsupported: dict[int, G.GltfFormatError] = field(default_factory=dict)
+    document: Document
+    layouts: dict[int, AccessorLayout] = field(default_factory=dict)
+    unsupported: dict[int, GltfFormatError] = field(default_factory=dict)
     reported: set[int] = field(default_factory=set)
 
     @property
@@ -40,10 +42,10 @@ class Context(CheckContext):
         return self.document.doc
 
     @property
-    def reader(self) -> Any:
+    def reader(self) -> Accessors:
         return self.document.reader
 
-    def add_error(self, err: G.GltfFormatError, fallback: str = "INTERNAL_ERROR",
+    def add_error(self, err: GltfFormatError, fallback: Code = Code.INTERNAL_ERROR,
                   pointer: str | None = None) -> None:
         """Report a reader error under its own code and location."""
         self.issues.add(err.code or fallback, err.cause, pointer=err.pointer or pointer,
@@ -53,7 +55,7 @@ class Context(CheckContext):
         value = self.doc.get(name, [])
         return value if isinstance(value, list) else []
 
-    def accessor(self, ref: Any, pointer: str) -> G.AccessorLayout | None:
+    def accessor(self, ref: Any, pointer: str) -> AccessorLayout | None:
         """Resolve the accessor index ``ref`` found at ``pointer``.
 
         Returns its layout, or ``None`` after reporting why its data cannot be used (a bad
@@ -61,7 +63,7 @@ class Context(CheckContext):
         """
         accessors = self.array("accessors")
         if not isinstance(ref, int) or isinstance(ref, bool) or not 0 <= ref < len(accessors):
-            self.issues.add("UNRESOLVED_REFERENCE", f"accessor index {ref!r} does not exist "
+            self.issues.add(Code.UNRESOLVED_REFERENCE, f"accessor index {ref!r} does not exist "
                             f"(there are {len(accessors)} accessors)", pointer=pointer)
             return None
         if ref in self.unsupported and ref not in self.reported:
@@ -69,24 +71,24 @@ class Context(CheckContext):
             self.add_error(self.unsupported[ref])
         return self.layouts.get(ref)
 
-    def read(self, layout: G.AccessorLayout, what: str) -> np.ndarray | None:
+    def read(self, layout: AccessorLayout, what: str) -> np.ndarray | None:
         """The elements of a checked accessor, (count, ncomp) in the stored dtype (read-only:
         possibly a view into the file's buffer)."""
         try:
             arr, _, _ = self.reader.raw(layout.accessor, what, (layout.gtype,), copy=False)
-        except G.GltfFormatError as err:
+        except GltfFormatError as err:
             self.add_error(err, pointer=f"/accessors/{layout.accessor}")
             return None
         return arr
 
-    def floats(self, layout: G.AccessorLayout, what: str) -> np.ndarray | None:
+    def floats(self, layout: AccessorLayout, what: str) -> np.ndarray | None:
         """A checked accessor dequantized as glTF 2.0 prescribes: float32 (count, ncomp)
         (not renormalized; read-only, possibly a view into the file's buffer)."""
         try:
             return self.reader.floats(layout.accessor, what, (layout.gtype,),
                                       allowed=[(layout.component_type, layout.normalized)],
                                       finite=False, copy=False)
-        except G.GltfFormatError as err:
+        except GltfFormatError as err:
             self.add_error(err, pointer=f"/accessors/{layout.accessor}")
             return None
 
@@ -96,10 +98,10 @@ def file_problem(path: str, issues: Issues, accepted: tuple[str, ...] = (".glb",
 
     A file is accepted by its suffix (``accepted``), or when it starts with the GLB magic."""
     if not os.path.exists(path):
-        issues.add("IO_ERROR", "file not found")
+        issues.add(Code.IO_ERROR, "file not found")
         return True
     if os.path.isdir(path):
-        issues.add("IO_ERROR", "is a folder, not a file")
+        issues.add(Code.IO_ERROR, "is a folder, not a file")
         return True
     ext = os.path.splitext(path)[1].lower()
     if ext not in accepted:
@@ -107,10 +109,10 @@ def file_problem(path: str, issues: Issues, accepted: tuple[str, ...] = (".glb",
             with open(path, "rb") as handle:
                 magic = handle.read(4)
         except OSError as err:
-            issues.add("IO_ERROR", f"cannot read: {err.strerror or err}")
+            issues.add(Code.IO_ERROR, f"cannot read: {err.strerror or err}")
             return True
         if magic != b"glTF":
-            issues.add("FILE_TYPE_UNSUPPORTED", f"unsupported file type "
+            issues.add(Code.FILE_TYPE_UNSUPPORTED, f"unsupported file type "
                        f"{ext or '(no extension)'}: expected a .glb, .gltf, .usda, .usdc, .usd "
                        f"or .usdz file")
             return True
@@ -122,27 +124,27 @@ def load_container(path: str, options: Options, issues: Issues) -> Context | Non
     be parsed (the reason is reported)."""
     if file_problem(path, issues):
         return None
-    glb_issues: list[tuple[str, str, int]] = []
+    glb_issues: list[tuple[Code, str, int]] = []
     try:
-        document = G.load_document(path, options.max_bytes,
+        document = load_document(path, options.max_bytes,
                                    max_data_uri=options.max_data_uri_bytes, issues=glb_issues)
-    except G.GltfFormatError as err:
+    except GltfFormatError as err:
         for code, message, offset in glb_issues:
             issues.add(code, message, offset=offset)
-        issues.add(err.code or "JSON_INVALID", err.cause, pointer=err.pointer, offset=err.offset)
+        issues.add(err.code or Code.JSON_INVALID, err.cause, pointer=err.pointer, offset=err.offset)
         return None
     except OSError as err:
-        issues.add("IO_ERROR", f"cannot read: {err.strerror or err}")
+        issues.add(Code.IO_ERROR, f"cannot read: {err.strerror or err}")
         return None
     except MemoryError:
-        issues.add("SIZE_LIMIT_EXCEEDED", "not enough memory to read the file; lower "
+        issues.add(Code.SIZE_LIMIT_EXCEEDED, "not enough memory to read the file; lower "
                    "--max-bytes to fail fast")
         return None
     for code, message, offset in glb_issues:
         issues.add(code, message, offset=offset)
     ctx = Context(path, options, issues, document)
-    for err in G.header_problems(document.doc, strict=True):
-        ctx.add_error(err)
+    for problem in header_problems(document.doc, strict=True):
+        ctx.add_error(problem)
     _check_buffers(ctx)
     return ctx
 
@@ -153,7 +155,7 @@ def _check_buffers(ctx: Context) -> None:
     for i in range(len(reader.buffers_json)):
         try:
             reader.buffer(i)
-        except G.GltfFormatError as err:
+        except GltfFormatError as err:
             ctx.add_error(err, pointer=f"/buffers/{i}")
             bad_buffers.add(i)
     bad_views: set[int] = set()
@@ -165,13 +167,13 @@ def _check_buffers(ctx: Context) -> None:
             continue
         try:
             reader.view_bounds(v)
-        except G.GltfFormatError as err:
+        except GltfFormatError as err:
             ctx.add_error(err, pointer=f"/bufferViews/{v}")
             bad_views.add(v)
             continue
         stride = raw.get("byteStride")
         if stride is not None and not (4 <= stride <= 252 and stride % 4 == 0):
-            ctx.issues.add("BUFFER_VIEW_STRIDE_INVALID", f"bufferViews[{v}].byteStride {stride} "
+            ctx.issues.add(Code.BUFFER_VIEW_STRIDE_INVALID, f"bufferViews[{v}].byteStride {stride} "
                            f"must be a multiple of 4 in 4..252",
                            pointer=f"/bufferViews/{v}/byteStride")
             bad_views.add(v)
@@ -182,22 +184,22 @@ def _check_buffers(ctx: Context) -> None:
             continue
         try:
             lay = reader.layout(i)
-        except G.GltfFormatError as err:
-            if err.code == "ACCESSOR_UNSUPPORTED":
+        except GltfFormatError as err:
+            if err.code == Code.ACCESSOR_UNSUPPORTED:
                 ctx.unsupported[i] = err  # reported only if splat or anchor data use it
-            elif err.code == "BUFFER_VIEW_STRIDE_INVALID":
+            elif err.code == Code.BUFFER_VIEW_STRIDE_INVALID:
                 ctx.issues.add(err.code, f"{err.cause}", pointer=err.pointer)
             else:
                 ctx.add_error(err, pointer=f"/accessors/{i}")
             continue
         pointer = f"/accessors/{i}"
         if lay.count < 1:
-            ctx.issues.add("ACCESSOR_INVALID", f"accessors[{i}].count must be at least 1",
+            ctx.issues.add(Code.ACCESSOR_INVALID, f"accessors[{i}].count must be at least 1",
                            pointer=f"{pointer}/count")
             continue
         if lay.start % lay.dtype.itemsize:
-            ctx.issues.add("ACCESSOR_MISALIGNED", f"accessors[{i}] starts at byte {lay.start} of "
-                           f"buffers[{lay.buffer}] (bufferView.byteOffset + byteOffset), not a "
+            ctx.issues.add(Code.ACCESSOR_MISALIGNED, f"accessors[{i}] starts at byte {lay.start} "
+                           f"of buffers[{lay.buffer}] (bufferView.byteOffset + byteOffset), not a "
                            f"multiple of its {lay.dtype.itemsize}-byte components",
                            pointer=pointer)
             continue

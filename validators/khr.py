@@ -1,7 +1,7 @@
 """``KHR_gaussian_splatting`` checks the Khronos glTF-Validator does not make.
 
 Per splat primitive: mode POINTS, the extension's required properties and their values, the
-required attributes and their accessor formats (``gsverse_format.io.gltf.KHR_ATTRIBUTE_FORMATS``),
+required attributes and their accessor formats (``vocabulary.KHR_ATTRIBUTE_FORMATS``),
 SH degrees complete, equal attribute counts, 4-byte aligned vertex attributes, and the values:
 finite, unit quaternions, non-negative linear scales, opacities in [0, 1].
 """
@@ -13,25 +13,26 @@ from typing import Any
 
 import numpy as np
 
-from gsverse_format.io import gltf as G
+from gsverse_format.codes import Code
+from gsverse_format.io.gltf import (QUANTIZED_POSITION_FORMATS, AccessorLayout, describe_format,
+                                    format_allowed, pointer_token)
 from gsverse_format.model import COLOR_SPACES
+from gsverse_format.vocabulary import (BYTE, COMPONENT_TYPE_NAMES, KHR, KHR_ATTRIBUTE_FORMATS,
+                                       SHORT, UNSIGNED_BYTE, UNSIGNED_SHORT, Format)
 
 from .container import Context
 from .values import (RestPose, check_finite, check_nonnegative, check_opacities,
                      check_unit_quaternions)
 
-__all__ = ["SplatData", "check_splat_primitive", "format_allowed", "describe_format",
-           "quantization_step"]
+__all__ = ["SplatData", "check_splat_primitive", "quantization_step"]
 
-KHR = G.KHR
 _SH_RE = re.compile(r"SH_DEGREE_(\d+)_COEF_(\d+)")
 _REQUIRED = ("POSITION", f"{KHR}:ROTATION", f"{KHR}:SCALE", f"{KHR}:OPACITY",
              f"{KHR}:SH_DEGREE_0_COEF_0")
 _PROPERTIES = (("kernel", ("ellipse",), True), ("colorSpace", COLOR_SPACES, True),
                ("projection", ("perspective",), False),
                ("sortingMethod", ("cameraDistance",), False))
-_STEP = {G.BYTE: 1 / 127, G.SHORT: 1 / 32767, G.UNSIGNED_BYTE: 1 / 255,
-         G.UNSIGNED_SHORT: 1 / 65535}
+_STEP = {BYTE: 1 / 127, SHORT: 1 / 32767, UNSIGNED_BYTE: 1 / 255, UNSIGNED_SHORT: 1 / 65535}
 
 
 @dataclass
@@ -54,7 +55,8 @@ class SplatData:
 
     def rest_pose(self) -> RestPose | None:
         """The stored rest pose when it is valid (``rest_ok``), else None."""
-        if not self.rest_ok:
+        if not self.rest_ok or self.means is None or self.rotations is None \
+                or self.scales is None:
             return None
         return RestPose(self.means, self.rotations, self.scales,
                         f"{self.pointer}/attributes/POSITION",
@@ -62,45 +64,34 @@ class SplatData:
 
 
 def tok(name: Any) -> str:
-    return G.pointer_token(name)
+    return pointer_token(name)
 
 
-def format_allowed(layout: G.AccessorLayout, fmt) -> bool:
-    types, pairs = fmt
-    return layout.gtype in types and any(
-        c == layout.component_type and (n is None or n == layout.normalized) for c, n in pairs)
-
-
-def describe_format(layout: G.AccessorLayout) -> str:
-    name = G._CTYPE_NAMES.get(layout.component_type, str(layout.component_type))
-    return f"{layout.gtype} {name}" + (" normalized" if layout.normalized else "")
-
-
-def quantization_step(layout: G.AccessorLayout) -> float:
+def quantization_step(layout: AccessorLayout) -> float:
     """One step of a normalized integer accessor (0 for FLOAT)."""
     return _STEP.get(layout.component_type, 0.0) if layout.normalized else 0.0
 
 
 def _check_properties(ctx: Context, khr: Any, pointer: str) -> None:
     if not isinstance(khr, dict):
-        ctx.issues.add("KHR_PROPERTY_INVALID", f"the {KHR} extension must be an object",
+        ctx.issues.add(Code.KHR_PROPERTY_INVALID, f"the {KHR} extension must be an object",
                        pointer=pointer)
         return
     for prop, known, required in _PROPERTIES:
         if prop not in khr:
             if required:
-                ctx.issues.add("KHR_PROPERTY_MISSING", f"{KHR} lacks the required property "
+                ctx.issues.add(Code.KHR_PROPERTY_MISSING, f"{KHR} lacks the required property "
                                f"{prop!r}", pointer=pointer)
         elif not isinstance(khr[prop], str):
-            ctx.issues.add("KHR_PROPERTY_INVALID", f"{KHR}.{prop} must be a string, got "
+            ctx.issues.add(Code.KHR_PROPERTY_INVALID, f"{KHR}.{prop} must be a string, got "
                            f"{khr[prop]!r:.40}", pointer=f"{pointer}/{prop}")
         elif khr[prop] not in known:
-            ctx.issues.add("KHR_PROPERTY_UNKNOWN_VALUE", f"{KHR}.{prop} is {khr[prop]!r:.60}, "
+            ctx.issues.add(Code.KHR_PROPERTY_UNKNOWN_VALUE, f"{KHR}.{prop} is {khr[prop]!r:.60}, "
                            f"which the base extension does not define (known: "
                            f"{', '.join(known)})", pointer=f"{pointer}/{prop}")
     nested = khr.get("extensions")
     if nested is not None and not isinstance(nested, dict):
-        ctx.issues.add("KHR_PROPERTY_INVALID", f"{KHR}.extensions must be an object",
+        ctx.issues.add(Code.KHR_PROPERTY_INVALID, f"{KHR}.extensions must be an object",
                        pointer=f"{pointer}/extensions")
 
 
@@ -117,34 +108,36 @@ def _check_semantics(ctx: Context, attrs: dict, pointer: str) -> None:
                 and str(int(m.group(1))) == m.group(1) and str(int(m.group(2))) == m.group(2):
             present.add((int(m.group(1)), int(m.group(2))))
             continue
-        ctx.issues.add("KHR_UNKNOWN_SEMANTIC", f"attribute {name!r:.80} is not a "
+        ctx.issues.add(Code.KHR_UNKNOWN_SEMANTIC, f"attribute {name!r:.80} is not a "
                        f"{KHR} semantic (ROTATION, SCALE, OPACITY, SH_DEGREE_l_COEF_n with "
                        f"l <= 3, n <= 2l)", pointer=f"{pointer}/attributes/{tok(name)}")
     missing = [a for a in _REQUIRED if a not in attrs]
     if missing:
-        ctx.issues.add("KHR_ATTRIBUTE_MISSING", f"required attribute(s) missing: "
+        ctx.issues.add(Code.KHR_ATTRIBUTE_MISSING, f"required attribute(s) missing: "
                        f"{', '.join(missing)}", pointer=f"{pointer}/attributes")
     highest = max((level for level, _ in present), default=-1)
     for level in range(highest + 1):
         lacking = [n for n in range(2 * level + 1) if (level, n) not in present]
         if len(lacking) == 2 * level + 1 and level > 0:
-            ctx.issues.add("KHR_SH_INCOMPLETE", f"SH degree {highest} is present but degree "
+            ctx.issues.add(Code.KHR_SH_INCOMPLETE, f"SH degree {highest} is present but degree "
                            f"{level} is missing", pointer=f"{pointer}/attributes")
         elif lacking and level > 0:
-            ctx.issues.add("KHR_SH_INCOMPLETE", f"SH degree {level} is partially defined "
+            ctx.issues.add(Code.KHR_SH_INCOMPLETE, f"SH degree {level} is partially defined "
                            f"(missing COEF_{', COEF_'.join(map(str, lacking))})",
                            pointer=f"{pointer}/attributes")
 
 
-def _format_of(name: str, quantized_positions: bool):
+def _format_of(name: str, quantized_positions: bool) -> tuple[str, tuple[Format, ...]] | None:
+    """(accessor type, allowed formats) of attribute ``name``; None for other attributes."""
     if name == "POSITION":
+        accessor, formats = KHR_ATTRIBUTE_FORMATS["POSITION"]
         if quantized_positions:
-            return (("VEC3",), G.KHR_ATTRIBUTE_FORMATS["POSITION"][1] + G.QUANTIZED_POSITION_FORMATS)
-        return G.KHR_ATTRIBUTE_FORMATS["POSITION"]
-    if name in G.KHR_ATTRIBUTE_FORMATS:
-        return G.KHR_ATTRIBUTE_FORMATS[name]
+            return accessor, formats + QUANTIZED_POSITION_FORMATS
+        return accessor, formats
+    if name in KHR_ATTRIBUTE_FORMATS:
+        return KHR_ATTRIBUTE_FORMATS[name]
     if name.startswith(KHR + ":SH_DEGREE_"):
-        return G.KHR_ATTRIBUTE_FORMATS["SH"]
+        return KHR_ATTRIBUTE_FORMATS["SH"]
     return None
 
 
@@ -153,7 +146,7 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
     pointer = f"/meshes/{m}/primitives/{p}"
     data = SplatData(m, p, pointer)
     if prim.get("mode", 4) != 0:
-        ctx.issues.add("KHR_PRIMITIVE_NOT_POINTS", f"a {KHR} primitive must have mode POINTS "
+        ctx.issues.add(Code.KHR_PRIMITIVE_NOT_POINTS, f"a {KHR} primitive must have mode POINTS "
                        f"(0), not {prim.get('mode', 4)!r}", pointer=f"{pointer}/mode")
     _check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
     attrs = prim.get("attributes", {})
@@ -163,7 +156,7 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
     used = ctx.doc.get("extensionsUsed", [])
     quantized_positions = isinstance(used, list) and "KHR_mesh_quantization" in used
 
-    layouts: dict[str, G.AccessorLayout] = {}
+    layouts: dict[str, AccessorLayout] = {}
     for name, ref in attrs.items():
         apointer = f"{pointer}/attributes/{tok(name)}"
         lay = ctx.accessor(ref, apointer)
@@ -171,15 +164,16 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
             continue
         data.attributes[name] = lay.accessor
         fmt = _format_of(name, quantized_positions)
-        if fmt is not None and not format_allowed(lay, fmt):
-            allowed = ", ".join(f"{'/'.join(fmt[0])} " + G._CTYPE_NAMES[c]
-                                + ("" if n is False else " normalized" if n else " (normalized or not)")
+        if fmt is not None and not format_allowed(lay, *fmt):
+            allowed = ", ".join(f"{fmt[0]} " + COMPONENT_TYPE_NAMES[c]
+                                + ("" if n is False else " normalized" if n else
+                                   " (normalized or not)")
                                 for c, n in fmt[1])
-            ctx.issues.add("KHR_ATTRIBUTE_FORMAT", f"{name} is {describe_format(lay)}; allowed: "
+            ctx.issues.add(Code.KHR_ATTRIBUTE_FORMAT, f"{name} is {describe_format(lay)}; allowed: "
                            f"{allowed}", pointer=apointer)
             continue
         if lay.start % 4 or lay.stride % 4:
-            ctx.issues.add("ACCESSOR_MISALIGNED", f"vertex attribute {name} (accessor "
+            ctx.issues.add(Code.ACCESSOR_MISALIGNED, f"vertex attribute {name} (accessor "
                            f"{lay.accessor}) starts at byte {lay.start} with stride {lay.stride}; "
                            f"both must be multiples of 4", pointer=apointer)
         layouts[name] = lay
@@ -190,13 +184,13 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
     count = layouts[reference].count
     for name, lay in list(layouts.items()):
         if lay.count != count:
-            ctx.issues.add("ATTRIBUTE_COUNT_MISMATCH", f"{name} has {lay.count} elements, "
+            ctx.issues.add(Code.ATTRIBUTE_COUNT_MISMATCH, f"{name} has {lay.count} elements, "
                            f"{reference} has {count}",
                            pointer=f"{pointer}/attributes/{tok(name)}")
             del layouts[name]
     data.count = count
     if ctx.options.max_splats is not None and count > ctx.options.max_splats:
-        ctx.issues.add("SPLAT_COUNT_LIMIT", f"the primitive has {count} splats, more than "
+        ctx.issues.add(Code.SPLAT_COUNT_LIMIT, f"the primitive has {count} splats, more than "
                        f"--max-splats {ctx.options.max_splats}; its values were not checked",
                        pointer=f"{pointer}/attributes/{tok(reference)}")
         return data

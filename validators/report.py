@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 from typing import Iterable
 
-from gsverse_format import __version__
+from gsverse_format.version import __version__
 
 from .issues import CATALOGUE, Finding, Severity
 from .validate import VALIDATOR_NAME, Report

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 import json
-import pathlib
+from importlib import resources
 from typing import Any
 
 __all__ = ["SCHEMA_NAME", "schema", "schema_errors"]
@@ -27,14 +27,12 @@ _GLTF_PROPERTY = {"properties": {"extensions": {"type": "object",
 
 
 @functools.lru_cache(maxsize=1)
-def schema() -> dict:
-    """The extension's JSON Schema (the copy shipped in ``gsverse_format/schema``)."""
-    path = pathlib.Path(__file__).resolve().parents[1] / "gsverse_format" / "schema" / SCHEMA_NAME
-    if not path.is_file():  # installed package layout
-        import gsverse_format
-
-        path = pathlib.Path(gsverse_format.__file__).resolve().parent / "schema" / SCHEMA_NAME
-    return json.loads(path.read_text(encoding="utf-8"))
+def schema() -> dict[str, Any]:
+    """The extension's JSON Schema: the one file, package data of ``gsverse_format/schema``
+    (``spec/schema/`` links to it)."""
+    text = (resources.files("gsverse_format") / "schema" / SCHEMA_NAME).read_text(encoding="utf-8")
+    result: dict[str, Any] = json.loads(text)
+    return result
 
 
 def _type_ok(value: Any, kind: str) -> bool:
@@ -59,7 +57,7 @@ def _token(key: str) -> str:
     return str(key).replace("~", "~0").replace("/", "~1")
 
 
-def _errors(node: dict, value: Any, pointer: str) -> list[tuple[str, str]]:
+def _errors(node: dict[str, Any], value: Any, pointer: str) -> list[tuple[str, str]]:
     """(pointer, message) for every violation of ``node`` by ``value``."""
     out: list[tuple[str, str]] = []
     if "$ref" in node:

@@ -12,8 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from gsverse_format import __version__
-from gsverse_format.io import gltf as G
+from gsverse_format.version import __version__
+from gsverse_format.codes import Code
+from gsverse_format.vocabulary import EXTENSION, KHR
 
 from .anchor import check_anchor
 from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
@@ -49,7 +50,7 @@ class Report:
     def findings(self):
         return self.issues.findings
 
-    def codes(self) -> set[str]:
+    def codes(self) -> set[Code]:
         return self.issues.codes()
 
     def count(self, severity: Severity) -> int:
@@ -90,7 +91,9 @@ def _where(err: BaseException) -> str:
 
 
 def _internal(issues: Issues, err: BaseException, pointer: str | None = None) -> None:
-    issues.add("INTERNAL_ERROR", f"{type(err).__name__}: {err}{_where(err)}"[:300],
+    """Report an unexpected exception (a bug, not bad input) as INTERNAL_ERROR with its type
+    and where it was raised."""
+    issues.add(Code.INTERNAL_ERROR, f"{type(err).__name__}: {err}{_where(err)}"[:300],
                pointer=pointer)
 
 
@@ -98,15 +101,15 @@ def _check_document(ctx: Context, info: dict) -> None:
     doc = ctx.doc
     used = doc.get("extensionsUsed", [])
     if not isinstance(used, list):
-        ctx.issues.add("GLTF_SCHEMA_VIOLATION", "extensionsUsed must be an array",
+        ctx.issues.add(Code.GLTF_SCHEMA_VIOLATION, "extensionsUsed must be an array",
                        pointer="/extensionsUsed")
         used = []
     required = doc.get("extensionsRequired", [])
     if isinstance(required, list):
         for i, name in enumerate(required):
-            if name == G.ANCHOR:
-                ctx.issues.add("ANCHOR_EXTENSION_REQUIRED", f"{G.ANCHOR} must not be listed in "
-                               f"extensionsRequired (the rest pose is a complete fallback)",
+            if name == EXTENSION:
+                ctx.issues.add(Code.ANCHOR_EXTENSION_REQUIRED, f"{EXTENSION} must not be listed "
+                               f"in extensionsRequired (the rest pose is a complete fallback)",
                                pointer=f"/extensionsRequired/{i}")
     khr_uses: list[str] = []
     anchor_uses: list[str] = []
@@ -115,32 +118,32 @@ def _check_document(ctx: Context, info: dict) -> None:
         for p, prim in enumerate(mesh.get("primitives", [])):
             pointer = f"/meshes/{m}/primitives/{p}"
             extensions = prim.get("extensions", {})
-            if G.ANCHOR in extensions:
-                ctx.issues.add("ANCHOR_EXTENSION_MISPLACED", f"{G.ANCHOR} belongs inside "
-                               f"extensions.{G.KHR}.extensions, not directly in the primitive's "
-                               f"extensions", pointer=f"{pointer}/extensions/{G.ANCHOR}")
-            if G.KHR not in extensions:
+            if EXTENSION in extensions:
+                ctx.issues.add(Code.ANCHOR_EXTENSION_MISPLACED, f"{EXTENSION} belongs inside "
+                               f"extensions.{KHR}.extensions, not directly in the primitive's "
+                               f"extensions", pointer=f"{pointer}/extensions/{EXTENSION}")
+            if KHR not in extensions:
                 continue
-            khr = extensions[G.KHR]
-            khr_uses.append(f"{pointer}/extensions/{G.KHR}")
+            khr = extensions[KHR]
+            khr_uses.append(f"{pointer}/extensions/{KHR}")
             try:
                 data = check_splat_primitive(ctx, m, p, prim, khr)
                 splats += 1
                 total += data.count or 0
                 nested = khr.get("extensions") if isinstance(khr, dict) else None
-                if isinstance(nested, dict) and G.ANCHOR in nested:
-                    apointer = f"{pointer}/extensions/{G.KHR}/extensions/{G.ANCHOR}"
+                if isinstance(nested, dict) and EXTENSION in nested:
+                    apointer = f"{pointer}/extensions/{KHR}/extensions/{EXTENSION}"
                     anchor_uses.append(apointer)
                     anchored += 1
-                    check_anchor(ctx, data, nested[G.ANCHOR], apointer)
-            except Exception as err:  # a bug must not hide the other findings
-                _internal(ctx.issues, err, pointer)
+                    check_anchor(ctx, data, nested[EXTENSION], apointer)
+            except Exception as err:  # boundary of one primitive's checks: a bug there is
+                _internal(ctx.issues, err, pointer)  # INTERNAL_ERROR, the others still run
     if not khr_uses:
-        ctx.issues.add("KHR_NO_SPLATS", f"the file has no {G.KHR} primitive")
-    for name, uses in ((G.KHR, khr_uses), (G.ANCHOR, anchor_uses)):
+        ctx.issues.add(Code.KHR_NO_SPLATS, f"the file has no {KHR} primitive")
+    for name, uses in ((KHR, khr_uses), (EXTENSION, anchor_uses)):
         if uses and name not in used:
-            ctx.issues.add("EXTENSION_NOT_DECLARED", f"{name} is used ({len(uses)} time(s)) but "
-                           f"not listed in extensionsUsed", pointer=uses[0])
+            ctx.issues.add(Code.EXTENSION_NOT_DECLARED, f"{name} is used ({len(uses)} time(s)) "
+                           f"but not listed in extensionsUsed", pointer=uses[0])
     info.update({"splatPrimitives": splats, "anchoredPrimitives": anchored, "splats": total,
                  "anchorPrimitives": sum(1 for k in ctx.cache if k[0] == "anchor")})
     generator = doc.get("asset", {}).get("generator") if isinstance(doc.get("asset"), dict) \
@@ -150,9 +153,13 @@ def _check_document(ctx: Context, info: dict) -> None:
 
 
 def validate_file(path: str | os.PathLike, options: Options | None = None, *,
-                  overrides: dict[str, Severity | None] | None = None,
+                  overrides: dict[Code, Severity | None] | None = None,
                   max_issues: int | None = None) -> Report:
-    """Validate ``path``. ``overrides`` maps issue codes to severities (``None``: ignore)."""
+    """Validate ``path``. ``overrides`` maps issue codes to severities (``None``: ignore).
+
+    Never raises: bad input is reported under its code, and an unexpected exception (a bug)
+    as INTERNAL_ERROR naming its type.
+    """
     start = time.perf_counter()
     spath = os.fspath(path)
     options = options or Options()
@@ -164,7 +171,7 @@ def validate_file(path: str | os.PathLike, options: Options | None = None, *,
             if not file_problem(spath, issues, USD_SUFFIXES):
                 report.mime_type = usd_mime_type(spath)
                 validate_usd(CheckContext(spath, options, issues), report.info)
-        except Exception as err:  # never crash on input; report where it happened
+        except Exception as err:  # boundary: a bug is INTERNAL_ERROR with its type, not bad input
             _internal(issues, err)
         report.seconds = time.perf_counter() - start
         return report
@@ -175,7 +182,7 @@ def validate_file(path: str | os.PathLike, options: Options | None = None, *,
             report.info["bytes"] = ctx.document.size
             with np.errstate(all="ignore"):  # overflow in hostile data is reported, not warned
                 _check_document(ctx, report.info)
-    except Exception as err:  # never crash on input; report where it happened
+    except Exception as err:  # boundary: a bug is INTERNAL_ERROR with its type, not bad input
         _internal(issues, err)
     report.seconds = time.perf_counter() - start
     return report

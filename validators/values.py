@@ -11,12 +11,15 @@ data (0 for floats), which widens the tolerances by one step.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
+from gsverse_format.codes import Code
 from gsverse_format.frames import EPS_DEGENERATE, degenerate_mask
-from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap import covariance_entries, iter_moments
+from gsverse_format.model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors,
+                                  TriangleMesh)
+from gsverse_format.remap_reference import covariance_entries, iter_moments
 from gsverse_format.tolerances import (REST_COVARIANCE_FLOOR, REST_COVARIANCE_RELATIVE,
                                        mesh_extent, rest_mean_tolerance)
 
@@ -25,12 +28,7 @@ from .issues import TOLERANCES
 
 __all__ = ["RestPose", "AnchorMesh", "AnchorValues", "check_finite", "check_unit_quaternions",
            "check_nonnegative", "check_opacities", "check_triangles", "check_anchor_values",
-           "check_rest_pose", "ANCHOR_PROPERTIES"]
-
-#: The anchor properties of each profile, by their glTF names.
-ANCHOR_PROPERTIES = {"local": ("faceIndex", "barycentrics", "normalOffset", "localRotation",
-                               "localScale"),
-                     "games": ("faceIndex", "barycentrics", "rho")}
+           "check_rest_pose"]
 
 
 @dataclass
@@ -81,7 +79,7 @@ def check_finite(ctx: CheckContext, values: np.ndarray, location: str, what: str
     if values.dtype.kind != "f" or bool(np.isfinite(values).all()):
         return True
     bad = np.flatnonzero(~np.isfinite(values.reshape(len(values), -1)).all(axis=1))
-    ctx.issues.add("NON_FINITE_VALUE", f"{what}: {bad.size} of {len(values)} elements hold NaN "
+    ctx.issues.add(Code.NON_FINITE_VALUE, f"{what}: {bad.size} of {len(values)} elements hold NaN "
                    f"or infinity", pointer=location, count=int(bad.size),
                    examples=ctx.examples(bad, index=np.arange(len(values)), value=values))
     return False
@@ -102,7 +100,7 @@ def check_unit_quaternions(ctx: CheckContext, q: np.ndarray, step: float, locati
     if bad.size == 0:
         return True
     worst = bad[np.argsort(-off[bad], kind="stable")]
-    ctx.issues.add("ROTATION_NOT_UNIT", f"{what}: {bad.size} of {len(q)} quaternions are not of "
+    ctx.issues.add(Code.ROTATION_NOT_UNIT, f"{what}: {bad.size} of {len(q)} quaternions are not of "
                    f"unit length (| |q| - 1 | up to {off[bad].max():.3g}, tolerance {tol:.3g})",
                    pointer=location, count=int(bad.size),
                    examples=ctx.examples(worst, index=np.arange(len(q)), norm=norm))
@@ -114,7 +112,7 @@ def check_nonnegative(ctx: CheckContext, s: np.ndarray, location: str, what: str
     if s.size == 0 or s.min() >= 0:
         return True
     bad = np.flatnonzero((s < 0).any(axis=1))
-    ctx.issues.add("SCALE_NEGATIVE", f"{what}: {bad.size} of {len(s)} splats have negative "
+    ctx.issues.add(Code.SCALE_NEGATIVE, f"{what}: {bad.size} of {len(s)} splats have negative "
                    f"scales (scales are linear and MUST NOT be negative; log-scales need exp())",
                    pointer=location, count=int(bad.size),
                    examples=ctx.examples(bad, index=np.arange(len(s)), value=s))
@@ -126,7 +124,7 @@ def check_opacities(ctx: CheckContext, o: np.ndarray, location: str, what: str) 
     if o.size == 0 or (o.min() >= 0 and o.max() <= 1):
         return True
     bad = np.flatnonzero((o < 0) | (o > 1))
-    ctx.issues.add("OPACITY_OUT_OF_RANGE", f"{what}: {bad.size} of {len(o)} opacities are "
+    ctx.issues.add(Code.OPACITY_OUT_OF_RANGE, f"{what}: {bad.size} of {len(o)} opacities are "
                    f"outside [0, 1] (opacities are linear, after the sigmoid)",
                    pointer=location, count=int(bad.size),
                    examples=ctx.examples(bad, index=np.arange(len(o)), value=o))
@@ -144,7 +142,7 @@ def check_triangles(ctx: CheckContext, mesh: TriangleMesh, location: str) -> Anc
     f = mesh.face_count
     if n_deg:
         faces = np.flatnonzero(degenerate)
-        ctx.issues.add("MESH_DEGENERATE_TRIANGLES", f"{n_deg} of {f} anchor triangles are "
+        ctx.issues.add(Code.MESH_DEGENERATE_TRIANGLES, f"{n_deg} of {f} anchor triangles are "
                        f"degenerate (doubled area <= {EPS_DEGENERATE:g} x longest edge squared)",
                        pointer=location, count=n_deg,
                        examples=ctx.examples(faces, face=np.arange(f), corners=mesh.faces))
@@ -159,7 +157,7 @@ def check_triangles(ctx: CheckContext, mesh: TriangleMesh, location: str) -> Anc
     if n_thin:
         faces = np.flatnonzero(thin)
         ratio = area2 / np.where(longest2 > 0, longest2, 1.0)
-        ctx.issues.add("MESH_SLIVER_TRIANGLES", f"{n_thin} of {f} anchor triangles are slivers "
+        ctx.issues.add(Code.MESH_SLIVER_TRIANGLES, f"{n_thin} of {f} anchor triangles are slivers "
                        f"(doubled area <= {TOLERANCES['sliver'][0]:g} x longest edge squared)",
                        pointer=location, count=n_thin,
                        examples=ctx.examples(faces, face=np.arange(f), areaRatio=ratio))
@@ -183,7 +181,7 @@ def _check_duplicates(ctx: CheckContext, mesh: TriangleMesh, location: str) -> N
     partner = first[inverse.reshape(-1)]
     dup = np.flatnonzero(partner != np.arange(f))
     if dup.size:
-        ctx.issues.add("MESH_DUPLICATE_TRIANGLES", f"{dup.size} of {f} anchor triangles repeat "
+        ctx.issues.add(Code.MESH_DUPLICATE_TRIANGLES, f"{dup.size} of {f} anchor triangles repeat "
                        f"the corners of an earlier triangle", pointer=location,
                        count=int(dup.size),
                        examples=ctx.examples(dup, face=np.arange(f), duplicateOf=partner))
@@ -201,22 +199,22 @@ def check_anchor_values(ctx: CheckContext, values: AnchorValues, mesh: AnchorMes
     ok = True
     face = arrays.get("faceIndex")
     if face is not None and face.size > 1 and bool(np.any(face[1:] < face[:-1])):
-        ctx.issues.add("ANCHOR_NOT_SORTED", "the splats are not sorted by faceIndex (sorted "
+        ctx.issues.add(Code.ANCHOR_NOT_SORTED, "the splats are not sorted by faceIndex (sorted "
                        "order is about 2x faster to remap)", pointer=where["faceIndex"])
     if face is None or mesh is None or mesh.mesh is None:
         ok = False
     else:
         out = np.flatnonzero((face < 0) | (face >= mesh.mesh.face_count))
         if out.size:
-            ctx.issues.add("ANCHOR_FACE_OUT_OF_RANGE", f"{out.size} of {len(face)} splats have "
+            ctx.issues.add(Code.ANCHOR_FACE_OUT_OF_RANGE, f"{out.size} of {len(face)} splats have "
                            f"a faceIndex outside [0, {mesh.mesh.face_count}), the anchor "
                            f"triangle count", pointer=where["faceIndex"], count=int(out.size),
                            examples=ctx.examples(out, splat=np.arange(len(face)), face=face))
             ok = False
-        elif mesh.degenerate.any():
+        elif mesh.degenerate is not None and mesh.degenerate.any():
             bound = np.flatnonzero(mesh.degenerate[face])
             if bound.size:
-                ctx.issues.add("ANCHOR_BOUND_TO_DEGENERATE", f"{bound.size} of {len(face)} "
+                ctx.issues.add(Code.ANCHOR_BOUND_TO_DEGENERATE, f"{bound.size} of {len(face)} "
                                f"splats are bound to {np.unique(face[bound]).size} triangle(s) "
                                f"that are degenerate at rest", pointer=where["faceIndex"],
                                count=int(bound.size),
@@ -229,7 +227,7 @@ def check_anchor_values(ctx: CheckContext, values: AnchorValues, mesh: AnchorMes
         _check_barycentrics(ctx, profile, bary, where["barycentrics"],
                             values.steps.get("barycentrics", 0.0))
 
-    anchors = None
+    anchors: LocalAnchors | GamesAnchors | None = None
     if profile == "local":
         rotation = arrays.get("localRotation")
         if rotation is not None and not check_unit_quaternions(
@@ -241,22 +239,25 @@ def check_anchor_values(ctx: CheckContext, values: AnchorValues, mesh: AnchorMes
                                                        "localScale"):
             scale = None
         offset = arrays.get("normalOffset")
-        if ok and offset is not None and rotation is not None and scale is not None \
+        if ok and face is not None and bary is not None and offset is not None \
+                and rotation is not None and scale is not None \
                 and values.deformation in ("affine", "rigid"):
-            anchors = LocalAnchors(face, bary, offset[:, 0], rotation, scale, values.deformation)
+            anchors = LocalAnchors(face, bary, offset[:, 0], rotation, scale,
+                                   cast(DeformationLaw, values.deformation))
     elif profile == "games":
         rho = arrays.get("rho")
         if rho is not None:
             neg = np.flatnonzero(rho[:, 0] < 0)
             if neg.size:
-                ctx.issues.add("GAMES_RHO_NEGATIVE", f"{neg.size} of {len(rho)} splats have "
+                ctx.issues.add(Code.GAMES_RHO_NEGATIVE, f"{neg.size} of {len(rho)} splats have "
                                f"rho < 0 (their scales collapse to 1e-8)", pointer=where["rho"],
                                count=int(neg.size),
                                examples=ctx.examples(neg, splat=np.arange(len(rho)),
                                                      rho=rho[:, 0]))
-            if ok:
+            if ok and face is not None and bary is not None:
                 anchors = GamesAnchors(face, bary, rho[:, 0])
-    if anchors is not None and rest is not None and consistent:
+    if anchors is not None and rest is not None and consistent and mesh is not None \
+            and mesh.mesh is not None:
         check_rest_pose(ctx, rest, Anchoring(mesh.mesh, anchors), mesh.diagonal, mesh.largest)
 
 
@@ -279,7 +280,7 @@ def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray
         tol = TOLERANCES["simplex"][0] + step
         bad, weights, low = below(-tol)
         if bad.size:
-            ctx.issues.add("GAMES_BARYCENTRICS_OUTSIDE_SIMPLEX", f"{bad.size} of {len(b0)} "
+            ctx.issues.add(Code.GAMES_BARYCENTRICS_OUTSIDE_SIMPLEX, f"{bad.size} of {len(b0)} "
                            f"games splats have barycentrics outside the triangle (smallest "
                            f"weight {low[bad].min():.3g}, tolerance {-tol:.3g})",
                            pointer=location, count=int(bad.size),
@@ -288,7 +289,7 @@ def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray
         bound = -TOLERANCES["local_far"][0]
         far, weights, low = below(bound)
         if far.size:
-            ctx.issues.add("LOCAL_BARYCENTRICS_FAR", f"{far.size} of {len(b0)} splats have a "
+            ctx.issues.add(Code.LOCAL_BARYCENTRICS_FAR, f"{far.size} of {len(b0)} splats have a "
                            f"barycentric weight below {bound:g}: their foot point lies far "
                            f"outside their triangle (allowed by the spec)",
                            pointer=location, count=int(far.size),
@@ -315,7 +316,7 @@ def check_rest_pose(ctx: CheckContext, rest: RestPose, anchoring: Anchoring,
     bad = np.flatnonzero(mean_err > mean_tol)
     if bad.size:
         worst = bad[np.argsort(-mean_err[bad], kind="stable")[:k]]
-        ctx.issues.add("REST_POSE_MEAN_MISMATCH", f"{bad.size} of {n} stored means differ from "
+        ctx.issues.add(Code.REST_POSE_MEAN_MISMATCH, f"{bad.size} of {n} stored means differ from "
                        f"the remap at the rest mesh by more than {mean_tol:.3g} (1e-5 x the "
                        f"anchor mesh diagonal {diagonal:.4g} + 8 float32 ulps of its largest "
                        f"coordinate {largest:.4g}); worst {mean_err[bad].max():.3g}",
@@ -324,7 +325,7 @@ def check_rest_pose(ctx: CheckContext, rest: RestPose, anchoring: Anchoring,
     bad = np.flatnonzero(cov_ratio > 1.0)
     if bad.size:
         worst = bad[np.argsort(-cov_rel[bad], kind="stable")[:k]]
-        ctx.issues.add("REST_POSE_COVARIANCE_MISMATCH", f"{bad.size} of {n} stored covariances "
+        ctx.issues.add(Code.REST_POSE_COVARIANCE_MISMATCH, f"{bad.size} of {n} stored covariances "
                        f"differ from the remap at the rest mesh by more than {rel_tol:g} "
                        f"(relative Frobenius norm); worst {cov_rel[bad].max():.3g}",
                        pointer=rest.covariance_location, count=int(bad.size),

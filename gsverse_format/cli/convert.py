@@ -10,8 +10,9 @@ import json
 import os
 import sys
 
-from .. import __version__
-from ..convert import ConvertOptions, convert
+from ..version import __version__
+from ..converters import SOURCES
+from ..pipeline import ConvertOptions, convert
 from ..errors import GsverseError, UsageError
 from ..progress import Progress
 
@@ -31,11 +32,11 @@ def build_parser() -> argparse.ArgumentParser:
                                   "usd-core), or .ply (plain splats, no anchoring)")
     src = p.add_argument_group("source")
     src.add_argument("--from", dest="source", default="auto",
-                     choices=("auto", "3dgs", "sugar", "trellis", "games", "khr"),
+                     choices=("auto", *SOURCES),
                      help="which tool made the input (default: detect where unambiguous)")
     src.add_argument("--mesh", help="anchor triangle mesh (.obj, .ply, .stl, .off, .glb, .gltf) in the "
                                     "same frame as the splats; without it a 3DGS PLY gets a mesh "
-                                    "reconstructed from its splats")
+                                    "reconstructed from its splats (see --reconstruct-faces)")
     src.add_argument("--pt", dest="pt_path", help="PyTorch checkpoint: SuGaR refined .pt or GaMeS "
                                                   "model_params.pt (needs PyTorch)")
     src.add_argument("--k", type=int, help="splats per face (SuGaR, GaMeS), overriding detection")
@@ -56,9 +57,12 @@ def build_parser() -> argparse.ArgumentParser:
                      help="--max-distance is in scene units")
     anc.add_argument("--drop-unanchored", action="store_true",
                      help="drop the splats beyond --max-distance instead of keeping them static")
-    anc.add_argument("--faces", type=int,
-                     help="decimate the anchor mesh to about this many faces (the resolution "
-                          "the physics needs), or the size of a reconstructed mesh")
+    anc.add_argument("--faces", type=int, metavar="N",
+                     help="decimate the anchor mesh to about N faces (the resolution the "
+                          "physics needs)")
+    anc.add_argument("--reconstruct-faces", type=int, metavar="N",
+                     help="without --mesh: reconstruct the anchor mesh from the splats with about "
+                          "N faces (default: --faces, else 20000)")
     anc.add_argument("--sh-degree", type=int, choices=(0, 1, 2, 3),
                      help="truncate spherical harmonics to this degree")
     anc.add_argument("--keep-order", action="store_true",
@@ -88,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
                              sh_degree=args.sh_degree, max_distance=args.max_distance,
                              absolute_distance=args.absolute_distance,
                              drop_unanchored=args.drop_unanchored, faces=args.faces,
+                             reconstruct_faces=args.reconstruct_faces,
                              pt_path=args.pt_path, k=args.k,
                              legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
                              bake_poses=args.bake_poses)

@@ -21,17 +21,26 @@ spec and glTF 2.0 allow. Each case here edits the written, rest-consistent asset
 """
 from __future__ import annotations
 
+from typing import Any, cast
+
 import numpy as np
 
 from .. import quaternion as quat
 from ..model import TriangleMesh
-from .cases import (LAWS, Pose, RemapCase, _anchors, _case, _dirichlet, _faces_from_counts,
-                    _law_id, _law_tags, _rng, _tube_mesh, bend, stretch, twist)
+from .case_tools import (LAWS, Pose, RemapCase, bend, case_rng, faces_from_counts, law_id,
+                         law_tags, make_anchors, make_case, random_barycentrics, stretch,
+                         tube_mesh, twist)
 from .glb import (BYTE, COMPONENT_DTYPES, FLOAT, SHORT, TYPE_COMPONENTS, UNSIGNED_BYTE,
                   UNSIGNED_SHORT, accessor_bytes, anchor_extension, anchor_primitive,
                   anchored_primitive, append_accessor, patch_accessor)
 
 __all__ = ["encoding_cases"]
+
+
+def _dtype(component_type: int) -> np.dtype[Any]:
+    """The numpy dtype of a glTF component type."""
+    return cast("np.dtype[Any]", COMPONENT_DTYPES[component_type])
+
 
 _KHR = "KHR_gaussian_splatting"
 _ROTATION, _SCALE, _OPACITY = f"{_KHR}:ROTATION", f"{_KHR}:SCALE", f"{_KHR}:OPACITY"
@@ -65,11 +74,11 @@ def _interleave(doc: dict, blob: bytes, fields: list, *, target: int | None = No
     for _, ctype, gtype, _, _ in fields:
         pos += -pos % 4
         offsets.append(pos)
-        pos += COMPONENT_DTYPES[ctype].itemsize * TYPE_COMPONENTS[gtype]
+        pos += _dtype(ctype).itemsize * TYPE_COMPONENTS[gtype]
     stride = max(pos + (-pos % 4), stride or 0)
     data = bytearray(n * stride)
     for (values, ctype, gtype, _, _), off in zip(fields, offsets):
-        dtype = COMPONENT_DTYPES[ctype]
+        dtype = _dtype(ctype)
         k = TYPE_COMPONENTS[gtype]
         view = np.ndarray((n, k), dtype=dtype, buffer=data, offset=off,
                           strides=(stride, dtype.itemsize))
@@ -125,7 +134,7 @@ def _local_scale_edit(ctype: int, normalized: bool, shared: bool):
         else:        # anchor data only: tightly packed
             blob = patch_accessor(doc, blob, attrs[_SCALE], deq.astype(np.float32))
             ext["localScale"], blob = append_accessor(doc, blob, codes, ctype, "VEC3",
-                                                       normalized)
+                                                      normalized)
         return doc, blob
     return edit
 
@@ -272,13 +281,13 @@ def _tube_poses(mesh: TriangleMesh, height: float) -> list[Pose]:
 def _small(profile: str, law: str | None, cid: str, *, size: float = 1.0,
            soup: bool = False, **kw):
     """A small tube (scaled by ``size``; a triangle soup when ``soup``), about 32 splats."""
-    rng = _rng(cid)
-    mesh = _tube_mesh(radius=0.25 * size, height=size)
+    rng = case_rng(cid)
+    mesh = tube_mesh(radius=0.25 * size, height=size)
     if soup:
         mesh = TriangleMesh(mesh.vertices[mesh.faces.reshape(-1)],
                             np.arange(3 * mesh.face_count).reshape(-1, 3))
-    face = _faces_from_counts(rng.integers(0, 2, mesh.face_count))
-    anchors = _anchors(profile, law, mesh, face, _dirichlet(rng, len(face)), rng, **kw)
+    face = faces_from_counts(rng.integers(0, 2, mesh.face_count))
+    anchors = make_anchors(profile, law, mesh, face, random_barycentrics(rng, len(face)), rng, **kw)
     return rng, mesh, anchors, _tube_poses(mesh, size)
 
 
@@ -296,17 +305,17 @@ def _local_scale_cases() -> list[RemapCase]:
         value = "c/255" if ctype == UNSIGNED_BYTE else "c/65535"
         how = (f"normalized {_NAMES[ctype].upper()} (scale = {value})" if normalized
                else f"{_NAMES[ctype].upper()}, not normalized (scale = the integer c; a tube "
-                    f"of height {size:g} so that the scales are integers of the scene's size)")
+               f"of height {size:g} so that the scales are integers of the scene's size)")
         where = ("shared with KHR_gaussian_splatting:SCALE (the rest pose reads the same "
                  "dequantized values)" if shared else "in its own accessor; SCALE stays FLOAT "
                  "with the dequantized values")
         tag = f"{_NAMES[ctype]}{'_normalized' if normalized else ''}"
-        out.append(_case(cid, f"local profile, {law} law: localScale stored as {how}, {where}. "
-                         f"The remap uses the dequantized localScale.",
-                         _law_tags("local", law) + [f"encoding:localScale={tag}"]
-                         + (["encoding:localScale-normalized"] if normalized else []),
-                         mesh, anchors, poses, rng, 1, edit=_local_scale_edit(ctype, normalized,
-                                                                               shared)))
+        out.append(make_case(cid, f"local profile, {law} law: localScale stored as {how}, {where}. "
+                             f"The remap uses the dequantized localScale.",
+                             law_tags("local", law) + [f"encoding:localScale={tag}"]
+                             + (["encoding:localScale-normalized"] if normalized else []),
+                             mesh, anchors, poses, rng, 1, edit=_local_scale_edit(ctype, normalized,
+                                                                                  shared)))
     return out
 
 
@@ -317,7 +326,7 @@ def _rest_quantized_cases() -> list[RemapCase]:
              ("games", None, None, None, UNSIGNED_SHORT, 1.0)]
     out = []
     for profile, law, rotation, scale, opacity, size in specs:
-        cid = f"{_law_id(profile, law)}-rest-quantized"
+        cid = f"{law_id(profile, law)}-rest-quantized"
         rng, mesh, anchors, poses = _small(profile, law, cid, size=size)
         parts = []
         if rotation is not None:
@@ -333,12 +342,12 @@ def _rest_quantized_cases() -> list[RemapCase]:
         else:
             note = ("ROTATION and SCALE stay FLOAT: a games rest pose is fixed by the triangles, "
                     "so quantizing it would break rest-pose consistency")
-        out.append(_case(cid, f"{_describe(profile, law)}: the rest pose quantized as "
-                         f"KHR_gaussian_splatting allows ({', '.join(parts)}, 4-byte aligned "
-                         f"with byteStride where the element is shorter); {note}. The rest "
-                         f"dumps are the dequantized values.",
-                         _law_tags(profile, law) + ["encoding:rest-quantized"], mesh, anchors,
-                         poses, rng, 2, edit=_rest_quantized_edit(rotation, scale, opacity)))
+        out.append(make_case(cid, f"{_describe(profile, law)}: the rest pose quantized as "
+                             f"KHR_gaussian_splatting allows ({', '.join(parts)}, 4-byte aligned "
+                             f"with byteStride where the element is shorter); {note}. The rest "
+                             f"dumps are the dequantized values.",
+                             law_tags(profile, law) + ["encoding:rest-quantized"], mesh, anchors,
+                             poses, rng, 2, edit=_rest_quantized_edit(rotation, scale, opacity)))
     return out
 
 
@@ -349,61 +358,62 @@ def _stride_cases() -> list[RemapCase]:
             "rigid": ["quantized:localRotation=byte"], None: []}
     out = []
     for profile, law in LAWS:
-        cid = f"{_law_id(profile, law)}-byte-stride"
+        cid = f"{law_id(profile, law)}-byte-stride"
         rng, mesh, anchors, poses = _small(profile, law, cid)
         q = quantize[law]
         extra = (f" ({', '.join(f'{k} as normalized {v.upper()}' for k, v in q.items())})"
                  if q else "")
-        out.append(_case(cid, f"{_describe(profile, law)}: interleaved buffer views. The anchor "
-                         f"accessors{extra} share one buffer view with byteStride, at byte "
-                         f"offsets inside the element; POSITION, ROTATION and SCALE of the "
-                         f"splats{' (SCALE also as localScale)' if law else ''} share another; the "
-                         f"anchor mesh POSITION is interleaved with a TEXCOORD_0. Read every "
-                         f"accessor with its bufferView's byteStride and its byteOffset.",
-                         _law_tags(profile, law) + ["encoding:byte-stride"] + tags[law], mesh,
-                         anchors, poses, rng, 0, quantize=q, edit=_stride_edit))
+        out.append(make_case(cid, f"{_describe(profile, law)}: interleaved buffer views. The "
+                             f"anchor accessors{extra} share one buffer view with byteStride, at "
+                             f"byte offsets inside the element; POSITION, ROTATION and SCALE of "
+                             f"the splats{' (SCALE also as localScale)' if law else ''} share "
+                             f"another; the anchor mesh POSITION is interleaved with a TEXCOORD_0. "
+                             f"Read every accessor with its bufferView's byteStride and its "
+                             f"byteOffset.",
+                             law_tags(profile, law) + ["encoding:byte-stride"] + tags[law], mesh,
+                             anchors, poses, rng, 0, quantize=q, edit=_stride_edit))
     return out
 
 
 def _non_indexed_cases() -> list[RemapCase]:
     out = []
     for profile, law in LAWS:
-        cid = f"{_law_id(profile, law)}-non-indexed"
+        cid = f"{law_id(profile, law)}-non-indexed"
         rng, mesh, anchors, poses = _small(profile, law, cid, soup=True)
-        out.append(_case(cid, f"{_describe(profile, law)}: the anchor primitive has no indices "
-                         f"(a tube stored as a triangle soup of {mesh.face_count} triangles): "
-                         f"triangle f has corners = vertices 3f, 3f + 1, 3f + 2, and F is the "
-                         f"vertex count divided by 3.",
-                         _law_tags(profile, law) + ["encoding:non-indexed"], mesh, anchors,
-                         poses, rng, 1, edit=_non_indexed_edit))
+        out.append(make_case(cid, f"{_describe(profile, law)}: the anchor primitive has no indices "
+                             f"(a tube stored as a triangle soup of {mesh.face_count} triangles): "
+                             f"triangle f has corners = vertices 3f, 3f + 1, 3f + 2, and F is the "
+                             f"vertex count divided by 3.",
+                             law_tags(profile, law) + ["encoding:non-indexed"], mesh, anchors,
+                             poses, rng, 1, edit=_non_indexed_edit))
     return out
 
 
 def _node_cases() -> list[RemapCase]:
     text = {"trs": "translation, rotation and non-uniform scale on both nodes",
             "matrix": "a matrix with uniform scale on the splat node, another matrix on the "
-                      "anchor node",
+            "anchor node",
             "child": "a translation and a mirroring scale on the splat node; the anchor node "
-                     "(translation, rotation, uniform scale) is the child of a parent node "
-                     "with non-uniform scale"}
+            "(translation, rotation, uniform scale) is the child of a parent node "
+            "with non-uniform scale"}
     variants = {"affine": "trs", "rigid": "matrix", None: "child"}
     out = []
     for profile, law in LAWS:
-        cid = f"{_law_id(profile, law)}-node-transforms"
+        cid = f"{law_id(profile, law)}-node-transforms"
         variant = variants[law]
         rng, mesh, anchors, poses = _small(profile, law, cid)
-        out.append(_case(cid, f"{_describe(profile, law)}: node transforms ({text[variant]}). "
-                         f"The remap is in the splat primitive's local space and the transform "
-                         f"of the node that instantiates the anchor mesh is ignored for "
-                         f"anchoring (spec section 'The anchor mesh'), so the expected outputs "
-                         f"are those of the same asset without any transform: dump them in the "
-                         f"splat primitive's local space, before the splat node's transform.",
-                         _law_tags(profile, law) + ["encoding:node-transforms"], mesh, anchors,
-                         poses, rng, 2, edit=_node_edit(variant),
-                         validator_codes=["ANCHOR_MESH_INSTANTIATED"],
-                         note="gsverse-validate warns that a node instantiates the anchor mesh "
-                              "(the spec says SHOULD NOT); one node is allowed, and its "
-                              "transform is ignored for anchoring."))
+        out.append(make_case(cid, f"{_describe(profile, law)}: node transforms ({text[variant]}). "
+                             f"The remap is in the splat primitive's local space and the transform "
+                             f"of the node that instantiates the anchor mesh is ignored for "
+                             f"anchoring (spec section 'The anchor mesh'), so the expected outputs "
+                             f"are those of the same asset without any transform: dump them in the "
+                             f"splat primitive's local space, before the splat node's transform.",
+                             law_tags(profile, law) + ["encoding:node-transforms"], mesh, anchors,
+                             poses, rng, 2, edit=_node_edit(variant),
+                             validator_codes=["ANCHOR_MESH_INSTANTIATED"],
+                             note="gsverse-validate warns that a node instantiates the anchor mesh "
+                             "(the spec says SHOULD NOT); one node is allowed, and its "
+                             "transform is ignored for anchoring."))
     return out
 
 

@@ -26,10 +26,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..model import TriangleMesh
-from .cases import (LAWS, Pose, RemapCase, _anchors, _case, _dirichlet, _faces_from_counts,
-                    _law_id, _law_tags, _local, _regular_triangles, _rng,
-                    _rotation, _soup, _soup_poses, _tube_mesh, bend, stretch, twist)
+from ..model import LocalAnchors, TriangleMesh
+from .case_tools import (LAWS, Pose, RemapCase, bend, case_rng, faces_from_counts, law_id,
+                         law_tags, local_anchors, make_anchors, make_case, random_barycentrics,
+                         random_rotation, regular_triangles, soup_mesh, soup_poses, stretch,
+                         tube_mesh, twist)
 from .glb import accessor_bytes, anchor_extension, patch_accessor
 
 __all__ = ["rule_cases", "SCALES"]
@@ -61,11 +62,11 @@ def _squash(tri: np.ndarray, target: float, rng: np.random.Generator) -> np.ndar
 
 
 def _threshold_case(profile: str, law: str | None) -> RemapCase:
-    cid = f"{_law_id(profile, law)}-threshold-crossing"
-    rng = _rng(cid)
+    cid = f"{law_id(profile, law)}-threshold-crossing"
+    rng = case_rng(cid)
     # near the origin (overlapping is fine in a soup): float32 spacing ~1e-7 there
-    base = _regular_triangles(rng, 8, spacing=0.0).astype(np.float32).astype(np.float64)
-    mesh = _soup(base)
+    base = regular_triangles(rng, 8, spacing=0.0).astype(np.float32).astype(np.float64)
+    mesh = soup_mesh(base)
     edits = []
     for target in _THRESHOLD_TARGETS:
         def squash(t, target=target):
@@ -73,25 +74,25 @@ def _threshold_case(profile: str, law: str | None) -> RemapCase:
             return np.stack([_squash(t[i], target, local) for i in range(len(t))])
         side = "above" if target > 1 else "below"
         edits.append((f"squashed to a = {target:g} eps_deg l^2 ({side} the threshold)", squash))
-    poses = _soup_poses(base, edits, mesh)
-    face = _faces_from_counts(np.full(8, 5))
+    poses = soup_poses(base, edits, mesh)
+    face = faces_from_counts(np.full(8, 5))
     kw = {"offset": 0.6} if profile == "local" else {}
-    anchors = _anchors(profile, law, mesh, face, _dirichlet(rng, len(face)), rng, **kw)
-    return _case(cid, f"{_describe(profile, law)}: every triangle squashed to a doubled area of "
-                 f"2, 1.3, 1.08, 0.92, 0.7 and 0.5 times eps_deg l^2, just above and just below "
-                 f"the degenerate threshold, with a short second edge so that float32 resolves "
-                 f"the cross product. The normal offset follows the scaled normal "
-                 f"m = (e1 x e2) / sqrt(a_c a_r), continuous through the threshold (v1 set it to "
-                 f"0 below).", _law_tags(profile, law) + ["rule:threshold"], mesh, anchors,
-                 poses, rng, 0)
+    anchors = make_anchors(profile, law, mesh, face, random_barycentrics(rng, len(face)), rng, **kw)
+    return make_case(cid, f"{_describe(profile, law)}: every triangle squashed to a doubled area "
+                     f"of 2, 1.3, 1.08, 0.92, 0.7 and 0.5 times eps_deg l^2, just above and just "
+                     f"below the degenerate threshold, with a short second edge so that float32 "
+                     f"resolves the cross product. The normal offset follows the scaled normal m = "
+                     f"(e1 x e2) / sqrt(a_c a_r), continuous through the threshold (v1 set it to 0 "
+                     f"below).", law_tags(profile, law) + ["rule:threshold"], mesh, anchors,
+                     poses, rng, 0)
 
 
 def _midpoint_case() -> RemapCase:
     cid = "games-midpoint-degenerate"
-    rng = _rng(cid)
-    base = _regular_triangles(rng, 8).astype(np.float32).astype(np.float64)
-    mesh = _soup(base)
-    r = _rotation(rng)
+    rng = case_rng(cid)
+    base = regular_triangles(rng, 8).astype(np.float32).astype(np.float64)
+    mesh = soup_mesh(base)
+    r = random_rotation(rng)
 
     def midpoint(t):
         for i in range(len(t)):
@@ -111,31 +112,31 @@ def _midpoint_case() -> RemapCase:
         t = midpoint(t)
         return (t.reshape(-1, 3) @ r.T + np.array([0.25, -0.5, 0.75])).reshape(-1, 3, 3)
 
-    poses = _soup_poses(base, [("v1 at the float32 midpoint of v0 v2", midpoint),
-                               ("v1 3e-7 of the edge off the midpoint", near_midpoint),
-                               ("midpoint pose, rotated and moved", moved)], mesh)
-    face = _faces_from_counts(np.full(8, 5))
-    anchors = _anchors("games", None, mesh, face, _dirichlet(rng, len(face)), rng)
-    return _case(cid, "games profile: v1 posed at the float32 midpoint of v0 v2 (and 3e-7 of "
-                 "the edge off it), so that v1 - c is rounding noise. The relative test "
-                 "|v1 - c| > eps_deg l fails and the splat lies along w = v2 - c with scale "
-                 "rho |w| / 2, as GaMeS's regularized code gives; an absolute test points b1 "
-                 "anywhere.", _law_tags("games", None) + ["rule:games-degenerate",
-                                                          "degenerate:current"],
-                 mesh, anchors, poses, rng, 0)
+    poses = soup_poses(base, [("v1 at the float32 midpoint of v0 v2", midpoint),
+                              ("v1 3e-7 of the edge off the midpoint", near_midpoint),
+                              ("midpoint pose, rotated and moved", moved)], mesh)
+    face = faces_from_counts(np.full(8, 5))
+    anchors = make_anchors("games", None, mesh, face, random_barycentrics(rng, len(face)), rng)
+    return make_case(cid, "games profile: v1 posed at the float32 midpoint of v0 v2 (and 3e-7 of "
+                     "the edge off it), so that v1 - c is rounding noise. The relative test "
+                     "|v1 - c| > eps_deg l fails and the splat lies along w = v2 - c with scale "
+                     "rho |w| / 2, as GaMeS's regularized code gives; an absolute test points b1 "
+                     "anywhere.", law_tags("games", None) + ["rule:games-degenerate",
+                                                             "degenerate:current"],
+                     mesh, anchors, poses, rng, 0)
 
 
 def _ties_case(law: str) -> RemapCase:
     cid = f"local-{law}-longest-edge-ties"
-    rng = _rng(cid)
-    base = _regular_triangles(rng, 6).astype(np.float64)
+    rng = case_rng(cid)
+    base = regular_triangles(rng, 6).astype(np.float64)
     base[0, 2] = base[0, 0]          # v2 = v0: |e1| = |e3|, opposite directions
     base[1, 1] = base[1, 0]          # v1 = v0: |e2| = |e3|
     base[2, 2] = base[2, 1]          # v2 = v1: |e1| = |e2|
     base[3, 2] = base[3, 0]          # v2 = v0 again, other direction
     base = base.astype(np.float32).astype(np.float64)
-    mesh = _soup(base)
-    r = _rotation(rng)
+    mesh = soup_mesh(base)
+    r = random_rotation(rng)
 
     def moved(t):
         return (t.reshape(-1, 3) @ r.T + np.array([0.5, -1.0, 2.0])).reshape(-1, 3, 3)
@@ -153,53 +154,54 @@ def _ties_case(law: str) -> RemapCase:
         t[4:] += 0.1
         return t
 
-    poses = _soup_poses(base, [("rigid motion, ties kept exactly", moved),
-                               ("axis-aligned segments with ties", axis_aligned),
-                               ("ties moved, other faces shifted", tie_opened)], mesh)
-    face = _faces_from_counts([6, 6, 6, 6, 3, 3])
-    anchors = _local(mesh, face, _dirichlet(rng, len(face)), rng, law)
-    return _case(cid, f"local profile, {law} law: splats on faces degenerate at rest that stay "
-                 f"segments whose longest edges tie exactly (v2 = v0 makes e1 and e3 = -e1 "
-                 f"equally long): t is the first of e1, e2, e3 by squared length, and the perp "
-                 f"rule takes the lowest axis on ties. On these faces G := I, so the frame "
-                 f"decides the output.",
-                 _law_tags("local", law) + ["rule:ties", "degenerate:rest", "degenerate:current"],
-                 mesh, anchors, poses, rng, 0,
-                 validator_codes=["ANCHOR_BOUND_TO_DEGENERATE", "MESH_DEGENERATE_TRIANGLES"],
-                 note="gsverse-validate reports this asset (writers MUST NOT bind splats to "
-                      "faces degenerate at rest), but a plugin MUST NOT refuse it.")
+    poses = soup_poses(base, [("rigid motion, ties kept exactly", moved),
+                              ("axis-aligned segments with ties", axis_aligned),
+                              ("ties moved, other faces shifted", tie_opened)], mesh)
+    face = faces_from_counts([6, 6, 6, 6, 3, 3])
+    anchors = local_anchors(mesh, face, random_barycentrics(rng, len(face)), rng, law)
+    return make_case(cid, f"local profile, {law} law: splats on faces degenerate at rest that stay "
+                     f"segments whose longest edges tie exactly (v2 = v0 makes e1 and e3 = -e1 "
+                     f"equally long): t is the first of e1, e2, e3 by squared length, and the perp "
+                     f"rule takes the lowest axis on ties. On these faces G := I, so the frame "
+                     f"decides the output.",
+                     law_tags("local", law)
+                     + ["rule:ties", "degenerate:rest", "degenerate:current"],
+                     mesh, anchors, poses, rng, 0,
+                     validator_codes=["ANCHOR_BOUND_TO_DEGENERATE", "MESH_DEGENERATE_TRIANGLES"],
+                     note="gsverse-validate reports this asset (writers MUST NOT bind splats to "
+                     "faces degenerate at rest), but a plugin MUST NOT refuse it.")
 
 
 def _scale_case(profile: str, law: str | None, scale: float) -> RemapCase:
     name = {1e-4: "1e-4", 1.0: "1", 1e4: "1e4"}[scale]
-    cid = f"{_law_id(profile, law)}-scale-{name}"
-    rng = _rng(f"{_law_id(profile, law)}-scale")       # the same asset at every scale
-    mesh = _tube_mesh()
-    face = _faces_from_counts(rng.integers(1, 3, mesh.face_count))
-    anchors = _anchors(profile, law, mesh, face, _dirichlet(rng, len(face)), rng)
+    cid = f"{law_id(profile, law)}-scale-{name}"
+    rng = case_rng(f"{law_id(profile, law)}-scale")       # the same asset at every scale
+    mesh = tube_mesh()
+    face = faces_from_counts(rng.integers(1, 3, mesh.face_count))
+    anchors = make_anchors(profile, law, mesh, face, random_barycentrics(rng, len(face)), rng)
     v = mesh.vertices.astype(np.float64)
     shapes = [("twist 90", twist(v, 90, (0, 0, 0), 0, 1)),
               ("bend 90", bend(v, 90, (0, 0, 0), 0, 1)),
               ("stretch", stretch(v, (1.5, 0.6, 1.0), (0, 0.5, 0)))]
     scaled = TriangleMesh(v * scale, mesh.faces)
-    if profile == "local":
+    if isinstance(anchors, LocalAnchors):
         anchors = replace(anchors, normal_offset=anchors.normal_offset.astype(np.float64) * scale,
                           local_scale=anchors.local_scale.astype(np.float64) * scale)
     poses = [Pose("rest", scaled.vertices, {"kind": "rest"})] + [
         Pose(label, verts * scale, {"kind": "analytic", "name": label, "scale": scale})
         for label, verts in shapes]
-    return _case(cid, f"{_describe(profile, law)}: the same asset and poses scaled by {name} "
-                 f"(vertices, normal offsets and local scales). Results agree after scaling "
-                 f"(games: within |1 - c|(1 + rho) eps, eps = 1e-8 applies in mesh-local "
-                 f"units): no absolute epsilon may enter the remap.",
-                 _law_tags(profile, law) + ["rule:scale", f"scale:{name}"], scaled, anchors,
-                 poses, rng, 0)
+    return make_case(cid, f"{_describe(profile, law)}: the same asset and poses scaled by {name} "
+                     f"(vertices, normal offsets and local scales). Results agree after scaling "
+                     f"(games: within |1 - c|(1 + rho) eps, eps = 1e-8 applies in mesh-local "
+                     f"units): no absolute epsilon may enter the remap.",
+                     law_tags(profile, law) + ["rule:scale", f"scale:{name}"], scaled, anchors,
+                     poses, rng, 0)
 
 
 def _rest_sliver_case(law: str) -> RemapCase:
     cid = f"local-{law}-rest-sliver-opened"
-    rng = _rng(cid)
-    base = _regular_triangles(rng, 8, spacing=0.0)
+    rng = case_rng(cid)
+    base = regular_triangles(rng, 8, spacing=0.0)
     heights = (1.1e-6, 1.2e-6, 1.5e-6, 2e-6, 1.1e-6, 1.3e-6, 3e-6, 1.05e-6)
     for i, h in enumerate(heights):
         v0, v1 = base[i, 0], base[i, 1]
@@ -208,7 +210,7 @@ def _rest_sliver_case(law: str) -> RemapCase:
         perp /= np.linalg.norm(perp)
         base[i, 2] = v0 + rng.uniform(0.3, 0.7) * e + 1.6 * h * np.linalg.norm(e) * perp
     base = base.astype(np.float32).astype(np.float64)
-    mesh = _soup(base)
+    mesh = soup_mesh(base)
 
     def opened(factor):
         def edit(t):
@@ -220,32 +222,34 @@ def _rest_sliver_case(law: str) -> RemapCase:
             return t
         return edit
 
-    r = _rotation(rng)
+    r = random_rotation(rng)
 
     def opened_rotated(t):
         return (opened(1e5)(t).reshape(-1, 3) @ r.T).reshape(-1, 3, 3)
 
-    poses = _soup_poses(base, [("heights x 1e3", opened(1e3)), ("heights x 1e5", opened(1e5)),
-                               ("heights x 1e5, rotated", opened_rotated)], mesh)
-    face = _faces_from_counts(np.full(8, 5))
-    anchors = _local(mesh, face, _dirichlet(rng, len(face)), rng, law, scale=0.3, offset=0.5)
-    return _case(cid, f"local profile, {law} law: rest slivers just above the degenerate "
-                 f"threshold (a from about 1.7e-6 to 5e-6 of l^2) opened 1e3x and 1e5x in "
-                 f"area. The rest quantities (C_r^-1, a_r) must be computed in double precision: "
-                 f"in float32 their rounding, amplified by the opening, moves the splats far "
-                 f"beyond the tolerance.", _law_tags("local", law) + ["rule:rest-precision",
-                                                                      "extreme:sliver"],
-                 mesh, anchors, poses, rng, 0,
-                 validator_codes=["MESH_SLIVER_TRIANGLES"],
-                 note="gsverse-validate warns about the rest slivers; a plugin remaps them.")
+    poses = soup_poses(base, [("heights x 1e3", opened(1e3)), ("heights x 1e5", opened(1e5)),
+                              ("heights x 1e5, rotated", opened_rotated)], mesh)
+    face = faces_from_counts(np.full(8, 5))
+    anchors = local_anchors(mesh, face, random_barycentrics(rng, len(face)), rng, law, scale=0.3,
+                            offset=0.5)
+    return make_case(cid, f"local profile, {law} law: rest slivers just above the degenerate "
+                     f"threshold (a from about 1.7e-6 to 5e-6 of l^2) opened 1e3x and 1e5x in "
+                     f"area. The rest quantities (C_r^-1, a_r) must be computed in double "
+                     f"precision: "
+                     f"in float32 their rounding, amplified by the opening, moves the splats far "
+                     f"beyond the tolerance.", law_tags("local", law) + ["rule:rest-precision",
+                                                                         "extreme:sliver"],
+                     mesh, anchors, poses, rng, 0,
+                     validator_codes=["MESH_SLIVER_TRIANGLES"],
+                     note="gsverse-validate warns about the rest slivers; a plugin remaps them.")
 
 
 def _rotation_norm_case(law: str) -> RemapCase:
     cid = f"local-{law}-float-rotation-norm"
-    rng = _rng(cid)
-    mesh = _tube_mesh()
-    face = _faces_from_counts(rng.integers(1, 3, mesh.face_count))
-    anchors = _local(mesh, face, _dirichlet(rng, len(face)), rng, law)
+    rng = case_rng(cid)
+    mesh = tube_mesh()
+    face = faces_from_counts(rng.integers(1, 3, mesh.face_count))
+    anchors = local_anchors(mesh, face, random_barycentrics(rng, len(face)), rng, law)
     off = rng.choice([-1.0, 1.0], len(face)) * rng.uniform(0.5e-5, 0.9e-5, len(face))
 
     def off_unit(doc, blob):
@@ -259,19 +263,19 @@ def _rotation_norm_case(law: str) -> RemapCase:
              Pose("twist 60", twist(v, 60, (0, 0, 0), 0, 1), {"kind": "analytic", "name": "twist"}),
              Pose("stretch", stretch(v, (1.4, 0.8, 1.1), (0, 0.5, 0)),
                   {"kind": "analytic", "name": "stretch"})]
-    return _case(cid, f"local profile, {law} law: FLOAT localRotation whose length is off unit "
-                 f"by 5e-6 to 9e-6 (within the writers' tolerance of 1e-5). Readers normalize "
-                 f"every quaternion, float ones included; without it the covariance is off by "
-                 f"about 2e-5 relative.", _law_tags("local", law) + ["rule:quaternion-norm"],
-                 mesh, anchors, poses, rng, 0, edit=off_unit)
+    return make_case(cid, f"local profile, {law} law: FLOAT localRotation whose length is off unit "
+                     f"by 5e-6 to 9e-6 (within the writers' tolerance of 1e-5). Readers normalize "
+                     f"every quaternion, float ones included; without it the covariance is off by "
+                     f"about 2e-5 relative.", law_tags("local", law) + ["rule:quaternion-norm"],
+                     mesh, anchors, poses, rng, 0, edit=off_unit)
 
 
 def _node_scale_case() -> RemapCase:
     cid = "games-node-scale-1e-3"
-    rng = _rng(cid)
-    mesh = _tube_mesh()
-    face = _faces_from_counts(rng.integers(1, 3, mesh.face_count))
-    anchors = _anchors("games", None, mesh, face, _dirichlet(rng, len(face)), rng)
+    rng = case_rng(cid)
+    mesh = tube_mesh()
+    face = faces_from_counts(rng.integers(1, 3, mesh.face_count))
+    anchors = make_anchors("games", None, mesh, face, random_barycentrics(rng, len(face)), rng)
     v = mesh.vertices.astype(np.float64)
     poses = [Pose("rest", mesh.vertices, {"kind": "rest"}),
              Pose("twist 90", twist(v, 90, (0, 0, 0), 0, 1), {"kind": "analytic", "name": "twist"}),
@@ -286,11 +290,11 @@ def _node_scale_case() -> RemapCase:
         node["scale"] = [1e-3, 1e-3, 1e-3]
         return doc, blob
 
-    return _case(cid, "games profile: the splat node scales the asset by 1e-3. GaMeS's eps = 1e-8 "
-                 "applies in mesh-local units, before node transforms: a remap done in world "
-                 "space (eps after the node scale) moves the in-plane scales by about 1e-5 "
-                 "local units.", _law_tags("games", None) + ["rule:games-epsilon-space"],
-                 mesh, anchors, poses, rng, 0, edit=node_scale)
+    return make_case(cid, "games profile: the splat node scales the asset by 1e-3. GaMeS's eps = "
+                     "1e-8 applies in mesh-local units, before node transforms: a remap done in "
+                     "world space (eps after the node scale) moves the in-plane scales by about "
+                     "1e-5 local units.", law_tags("games", None) + ["rule:games-epsilon-space"],
+                     mesh, anchors, poses, rng, 0, edit=node_scale)
 
 
 def rule_cases() -> list[RemapCase]:

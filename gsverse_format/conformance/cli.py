@@ -13,7 +13,7 @@ import argparse
 import json
 import sys
 
-from .. import __version__
+from ..version import __version__
 from ..errors import GsverseError
 
 PROG = "gsverse-conformance"

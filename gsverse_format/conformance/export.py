@@ -11,7 +11,7 @@ IEEE float32, ``.f64`` IEEE float64)::
     DIR/cases/<id>/expected/...         float64 reference outputs (see LAYOUT.md)
     DIR/cases/<id>/skinned.glb          skinned cases: the animation the poses come from
 
-Expected outputs come from the float64 reference (:mod:`gsverse_format.remap`), evaluated on
+Expected outputs come from the float64 reference (:mod:`gsverse_format.remap_reference`), evaluated on
 exactly the values stored in the files: the anchors as read back from ``asset.glb``
 (dequantized) and the float32 poses.
 """
@@ -23,16 +23,17 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..errors import UsageError
 from ..frames import EPS_DEGENERATE, local_frames
 from ..io.gltf import asset_to_gltf, gltf_to_bytes
 from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                      SplatPrimitive)
-from ..remap import face_matrices, prepare_rest, remap
+from ..remap_reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
 from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
@@ -141,10 +142,11 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
     mesh, anchors = anchoring.mesh, anchoring.anchors
     face = anchors.face_index.astype(np.intp)
     used = np.unique(face)
-    local = isinstance(anchors, LocalAnchors)
-    rest = prepare_rest(mesh.triangles()) if local else None
+    local = anchors if isinstance(anchors, LocalAnchors) else None
+    rest = prepare_rest(mesh.triangles()) if local is not None else None
     b = anchors.barycentrics.astype(np.float64)
-    d = np.abs(anchors.normal_offset.astype(np.float64)) if local else np.zeros(len(face))
+    d = (np.abs(local.normal_offset.astype(np.float64)) if local is not None
+         else np.zeros(len(face)))
     x = max(float(np.max(np.linalg.norm(m, axis=1))) for m in expected_means)
     lever = y = y_normal = z_normal = 0.0
     k_tri = k_g = 1.0
@@ -161,17 +163,17 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
             k_tri = max(k_tri, float(np.max(longest[used][near] ** 2 / fr.area2[used][near])))
         e1 = np.linalg.norm(edges[face, 0], axis=1)
         e2 = np.linalg.norm(edges[face, 1], axis=1)
-        if local:
-            k = np.where(rest.regular[face], np.sqrt(fr.area2[face] /
-                                                     np.where(rest.regular[face], rest.area2[face], 1.0)), 1.0)
-            _, _, a_law = face_matrices(rest, fr, tri, anchors.deformation)
-            yn, zn = _normal_terms(anchors, rest, tri, face, a_law)
+        if local is not None and rest is not None:
+            safe = np.where(rest.regular[face], rest.area2[face], 1.0)
+            k = np.where(rest.regular[face], np.sqrt(fr.area2[face] / safe), 1.0)
+            _, _, a_law = face_matrices(rest, fr, tri, local.deformation)
+            yn, zn = _normal_terms(local, rest, tri, face, a_law)
             y_normal, z_normal = max(y_normal, yn), max(z_normal, zn)
         else:
             k = np.zeros(len(face))
         lever = max(lever, float(np.max(np.abs(b[:, 0]) * e1 + np.abs(b[:, 1]) * e2 + d * k)))
         y = max(y, float(np.max(d * k)))
-        if local and anchors.deformation == "affine":
+        if local is not None and rest is not None and local.deformation == "affine":
             _, _, a = face_matrices(rest, fr, tri, "affine")
             sv = np.linalg.svd(a[used], compute_uv=False)
             top = sv[:, 0]
@@ -304,9 +306,11 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     asset_path = case_dir / "asset.glb"
     prim = _consistent_asset(case, asset_path)
     anchoring = prim.anchoring
+    if anchoring is None:
+        raise RuntimeError(f"{case.id}: the exported asset has no anchoring")
     splats = prim.splats
     n = len(splats)
-    files = {"asset": "asset.glb", "poses": [], "expected": {}}
+    files: dict[str, Any] = {"asset": "asset.glb", "poses": [], "expected": {}}
     rest_cov = splats.covariances()
     exp = case_dir / "expected"
     _write_array(exp / "rest.means.f64", splats.means.astype(np.float64), "f8")
@@ -316,8 +320,10 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     files["expected"]["rest"] = {"means": "expected/rest.means.f64", "cov": "expected/rest.cov.f64",
                                  "opacity": "expected/rest.opacity.f32",
                                  "sh": "expected/rest.sh.f32"}
-    pose_arrays, means_list, poses_meta = [], [splats.means.astype(np.float64)], []
-    expected_poses = []
+    pose_arrays: list[np.ndarray] = []
+    means_list: list[np.ndarray] = [splats.means.astype(np.float64)]
+    poses_meta: list[dict[str, Any]] = []
+    expected_poses: list[dict[str, str]] = []
     for p, pose in enumerate(case.poses):
         stem = f"pose_{p:03d}"
         _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
@@ -465,12 +471,12 @@ def export_suite(directory: str | os.PathLike) -> dict:
         cache: dict = {}
         scratch = tmp / ".bases"
         scratch.mkdir()
-        for case in invalid_defs.invalid_cases():
-            manifest = _export_invalid(case, tmp / "cases" / case.id, cache, scratch)
-            _write(tmp / "cases" / case.id / "case.json",
+        for invalid in invalid_defs.invalid_cases():
+            manifest = _export_invalid(invalid, tmp / "cases" / invalid.id, cache, scratch)
+            _write(tmp / "cases" / invalid.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))
-            entries.append({"id": case.id, "kind": "invalid", "tags": manifest["tags"],
-                            "path": f"cases/{case.id}"})
+            entries.append({"id": invalid.id, "kind": "invalid", "tags": manifest["tags"],
+                            "path": f"cases/{invalid.id}"})
         shutil.rmtree(scratch)
         suite = {
             "format": "gsverse-conformance-suite",

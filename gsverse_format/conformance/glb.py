@@ -12,13 +12,15 @@ import struct
 
 import numpy as np
 
+from ..io.gltf import BufferBuilder  # the writer's buffer builder, shared with the suite
+
 __all__ = ["pack_glb", "unpack_glb", "BufferBuilder", "accessor_bytes", "patch_accessor",
            "anchored_primitive", "anchor_extension", "anchor_primitive", "append_accessor",
            "COMPONENT_DTYPES", "TYPE_COMPONENTS", "BYTE", "UNSIGNED_BYTE", "SHORT",
            "UNSIGNED_SHORT", "UNSIGNED_INT", "FLOAT"]
 
 BYTE, UNSIGNED_BYTE, SHORT, UNSIGNED_SHORT, UNSIGNED_INT, FLOAT = 5120, 5121, 5122, 5123, 5125, 5126
-COMPONENT_DTYPES = {BYTE: np.dtype("<i1"), UNSIGNED_BYTE: np.dtype("<u1"),
+COMPONENT_DTYPES: dict[int, np.dtype] = {BYTE: np.dtype("<i1"), UNSIGNED_BYTE: np.dtype("<u1"),
                     SHORT: np.dtype("<i2"), UNSIGNED_SHORT: np.dtype("<u2"),
                     UNSIGNED_INT: np.dtype("<u4"), FLOAT: np.dtype("<f4")}
 TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
@@ -55,40 +57,6 @@ def unpack_glb(data: bytes) -> tuple[dict, bytes]:
         raise ValueError("GLB does not start with a JSON chunk")
     blob = chunks[1][1] if len(chunks) > 1 and chunks[1][0] == _BIN else b""
     return json.loads(chunks[0][1].decode("utf-8")), bytes(blob)
-
-
-class BufferBuilder:
-    """One binary buffer with one 4-byte-aligned bufferView per accessor."""
-
-    def __init__(self) -> None:
-        self.blob = bytearray()
-        self.views: list[dict] = []
-        self.accessors: list[dict] = []
-
-    def add(self, array, ctype: int, gtype: str, *, normalized: bool = False,
-            target: int | None = None, minmax: bool = False) -> int:
-        data = np.ascontiguousarray(np.asarray(array), dtype=COMPONENT_DTYPES[ctype])
-        count = int(data.shape[0])
-        self.blob += b"\0" * (-len(self.blob) % 4)
-        view = {"buffer": 0, "byteOffset": len(self.blob), "byteLength": int(data.nbytes)}
-        if target is not None:
-            view["target"] = target
-        self.blob += data.tobytes()
-        self.views.append(view)
-        acc = {"bufferView": len(self.views) - 1, "componentType": ctype, "count": count,
-               "type": gtype}
-        if normalized:
-            acc["normalized"] = True
-        if minmax:
-            flat = data.reshape(count, -1).astype(np.float64)
-            acc["min"] = [float(v) for v in flat.min(axis=0)]
-            acc["max"] = [float(v) for v in flat.max(axis=0)]
-        self.accessors.append(acc)
-        return len(self.accessors) - 1
-
-    def finish(self) -> bytes:
-        self.blob += b"\0" * (-len(self.blob) % 4)
-        return bytes(self.blob)
 
 
 def _layout(doc: dict, index: int) -> tuple[int, int, np.dtype, int, int]:

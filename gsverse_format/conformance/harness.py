@@ -9,7 +9,7 @@ layout; :func:`run_plugin` is the same loop in Python for implementations callab
 An implementation is an object with the methods of :class:`Plugin`. Three are provided:
 
 * :class:`ReferencePlugin` — the library as a plugin: :func:`gsverse_format.io.gltf.read_gltf`
-  and the float64 reference :func:`gsverse_format.remap.remap`;
+  and the float64 reference :func:`gsverse_format.remap_reference.remap`;
 * :class:`FastPlugin` — the same importer and the compiled float32 path
   (:class:`gsverse_format.remap_fast.FastRemapper`);
 * :class:`RawReferencePlugin` — the importer of :mod:`.minimal_reader` (no glTF library) with
@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import FormatError
 from ..io.gltf import read_gltf
 from ..model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from .. import remap as reference
+from .. import remap_reference as reference
 from .glb import unpack_glb
 from .minimal_reader import Raw, Refused, dequantize, read_anchored_glb
 
@@ -171,8 +171,8 @@ def _require_document_rules(asset_path: str) -> None:
         doc, _ = unpack_glb(Path(asset_path).read_bytes())
     except (OSError, ValueError):
         return   # the importer reports unreadable containers
-    meshes = doc.get("meshes") if isinstance(doc.get("meshes"), list) else []
-    nodes = doc.get("nodes") if isinstance(doc.get("nodes"), list) else []
+    meshes: list = doc["meshes"] if isinstance(doc.get("meshes"), list) else []
+    nodes: list = doc["nodes"] if isinstance(doc.get("nodes"), list) else []
     for m, mesh in enumerate(meshes):
         for p, prim in enumerate(mesh.get("primitives", []) if isinstance(mesh, dict) else []):
             khr = (prim.get("extensions") or {}).get(_KHR) if isinstance(prim, dict) else None
@@ -196,7 +196,7 @@ class ReferencePlugin:
     ``form="cov"`` dumps covariances, ``"rotscale"`` the reference's rotation/scale pairs.
     """
 
-    name = "gsverse_format.remap (numpy, float64)"
+    name = "gsverse_format.remap_reference (numpy, float64)"
 
     def __init__(self, form: str = "cov") -> None:
         self.form = form
@@ -251,7 +251,7 @@ class FastPlugin(ReferencePlugin):
 
     def apply_pose(self, vertices: np.ndarray) -> dict[str, np.ndarray]:
         out = self.remapper.remap(np.ascontiguousarray(vertices, dtype=np.float32)).copy()
-        if out.rotations is not None:
+        if out.rotations is not None and out.scales is not None:
             return {"means": out.means, "rotation": out.rotations, "scale": out.scales}
         return {"means": out.means, "cov": out.cov6}
 
@@ -263,7 +263,7 @@ class RawReferencePlugin:
     as the spec requires (turn it off to see what happens when an importer forgets).
     """
 
-    name = "minimal_reader + gsverse_format.remap"
+    name = "minimal_reader + gsverse_format.remap_reference"
 
     def __init__(self, dequantize_fn: Callable[[Raw], np.ndarray] = dequantize,
                  renormalize: bool = True) -> None:
@@ -282,12 +282,14 @@ class RawReferencePlugin:
         mesh = TriangleMesh(a.anchor_vertices, a.anchor_faces)
         face = a.anchors["faceIndex"].values[:, 0].astype(np.uint32)
         bary = self.deq(a.anchors["barycentrics"])
+        anchors: GamesAnchors | LocalAnchors
         if a.profile == "games":
             anchors = GamesAnchors(face, bary, self.deq(a.anchors["rho"])[:, 0])
         else:
             anchors = LocalAnchors(face, bary, self.deq(a.anchors["normalOffset"])[:, 0],
                                    self._quat(a.anchors["localRotation"]),
-                                   self.deq(a.anchors["localScale"]), a.deformation)
+                                   self.deq(a.anchors["localScale"]),
+                                   "rigid" if a.deformation == "rigid" else "affine")
         self.anchoring = Anchoring(mesh, anchors)
         self.rest_data = reference.prepare_rest(mesh.triangles()) if a.profile == "local" else None
 

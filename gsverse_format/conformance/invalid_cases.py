@@ -12,7 +12,8 @@ from typing import Callable
 
 import numpy as np
 
-from .cases import RemapCase, _anchors, _case, _dirichlet, _faces_from_counts, _rest_pose, _rng, _tube_mesh
+from .case_tools import (RemapCase, case_rng, faces_from_counts, make_anchors, make_case,
+                         random_barycentrics, rest_pose, tube_mesh)
 from .glb import (BYTE, FLOAT, SHORT, UNSIGNED_SHORT, accessor_bytes, anchor_extension,
                   anchor_primitive, anchored_primitive, append_accessor, patch_accessor)
 
@@ -122,7 +123,7 @@ def _m_offset_short(doc, blob):
     e = anchor_extension(doc)
     d = accessor_bytes(doc, blob, e["normalOffset"]).astype(np.float64)
     e["normalOffset"], blob = append_accessor(doc, blob, np.round(np.clip(d, -1, 1) * 32767),
-                                               SHORT, "SCALAR", True)
+                                              SHORT, "SCALAR", True)
     return doc, blob
 
 
@@ -161,7 +162,7 @@ def _m_rho_u16(doc, blob):
     e = anchor_extension(doc)
     r = accessor_bytes(doc, blob, e["rho"]).astype(np.float64)
     e["rho"], blob = append_accessor(doc, blob, np.round(np.clip(r / 2, 0, 1) * 65535),
-                                      UNSIGNED_SHORT, "SCALAR", True)
+                                     UNSIGNED_SHORT, "SCALAR", True)
     return doc, blob
 
 
@@ -343,10 +344,10 @@ def invalid_cases() -> list[InvalidCase]:
 
 def invalid_base_case(kind: str) -> RemapCase:
     """The small valid asset an invalid case is derived from (``local`` or ``games``)."""
-    rng = _rng(f"invalid-base-{kind}")
-    mesh = _tube_mesh()
-    face = _faces_from_counts(np.arange(mesh.face_count) % 3 == 0)
+    rng = case_rng(f"invalid-base-{kind}")
+    mesh = tube_mesh()
+    face = faces_from_counts(np.arange(mesh.face_count) % 3 == 0)
     law = "affine" if kind == "local" else None
-    anchors = _anchors(kind, law, mesh, face, _dirichlet(rng, len(face)), rng)
-    return _case(f"invalid-base-{kind}", "base of the invalid cases", [], mesh, anchors,
-                 [_rest_pose(mesh)], rng, 0)
+    anchors = make_anchors(kind, law, mesh, face, random_barycentrics(rng, len(face)), rng)
+    return make_case(f"invalid-base-{kind}", "base of the invalid cases", [], mesh, anchors,
+                     [rest_pose(mesh)], rng, 0)

@@ -1,27 +1,28 @@
 """Reading anchor meshes (OBJ, PLY, STL, OFF, GLB/glTF) into :class:`TriangleMesh`.
 
-Vertex and face order are kept as the file has them (``process=False``): converters that bind
-by face index (SuGaR, GaMeS) depend on it. Polygons are fan-triangulated by trimesh. glTF
-scenes are flattened with their node transforms applied (by the project's own hardened
-glTF reader, which never follows URIs outside the asset's folder).
+Vertex and face order are kept as the file has them: converters that bind by face index
+(SuGaR, GaMeS) depend on it. PLY meshes are read by the project's own strict PLY reader
+(:func:`gsverse_format.io.ply.read_ply_mesh`; polygons are fan-triangulated in file order),
+glTF scenes by its hardened glTF reader (flattened with their node transforms applied, URIs
+never followed outside the asset's folder), OBJ, STL and OFF by trimesh (``process=False``;
+polygons fan-triangulated by trimesh).
 """
 from __future__ import annotations
 
 import os
+import struct
 import warnings
 
 import numpy as np
 
-from ..errors import FormatError
+from ..errors import FormatError, UsageError
 from ..model import TriangleMesh
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
 
-def read_mesh(path: str | os.PathLike) -> TriangleMesh:
+def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
     """Read a triangle mesh; raises :class:`FormatError` with a one-line cause on bad input."""
-    import trimesh
-
     path = os.fspath(path)
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_EXTENSIONS:
@@ -34,6 +35,13 @@ def read_mesh(path: str | os.PathLike) -> TriangleMesh:
         from .gltf import read_gltf_triangles
 
         return read_gltf_triangles(path)
+    if ext == ".ply":
+        # The strict PLY reader (declared counts checked before allocation, fuzzed).
+        from .ply import read_ply_mesh
+
+        return read_ply_mesh(path, triangulate=True)
+    import trimesh
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -41,7 +49,12 @@ def read_mesh(path: str | os.PathLike) -> TriangleMesh:
                                   skip_materials=True)
     except FormatError:
         raise
-    except Exception as exc:  # trimesh raises many types for bad files
+    except ImportError as exc:   # an optional package trimesh needs for this file
+        raise UsageError(f"reading this {ext} mesh needs the Python package "
+                         f"{exc.name or exc}; install it with pip", path) from None
+    except (ValueError, TypeError, KeyError, IndexError, AttributeError, OverflowError,
+            UnicodeError, EOFError, OSError, struct.error) as exc:
+        # what trimesh's parsers raise on malformed files (it has no error type of its own)
         raise FormatError(f"cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0], path)
     if not isinstance(loaded, trimesh.Trimesh):
         raise FormatError("file holds no triangle mesh", path)

@@ -1,26 +1,55 @@
-"""One registry for splat-asset formats, keyed by file extension (like meshio).
+"""The table of splat-asset formats, keyed by file suffix (like meshio), and the frames they use.
 
-Every reader returns a :class:`SplatAsset` in the glTF coordinate frame (+Y up); every writer
-takes one. PLY files are in the 3DGS frame: by default the PLY reader/writer here rotate 180°
-about Z on the way in and out (see :mod:`gsverse_format.transform`); pass
-``frame_change=False`` to keep coordinates as they are. USD files (``spec/usd.md``) need the
-optional usd-core package.
+Each format package registers itself once, at the end of its ``__init__``, with
+:func:`register_format`: ``read(path) -> SplatAsset`` returns the file's content in the file's
+own coordinate frame, ``write(asset, path, *, protect=(), **options)`` writes an asset given in
+that frame, and ``frame`` names it (a key of :data:`FRAMES`). Formats never import each other
+or this module's callers; :mod:`gsverse_format.io` imports every format package, so importing
+anything from ``gsverse_format.io`` fills the table.
+
+:func:`read_asset` and :func:`write_asset` are the callers' side: they dispatch on the suffix
+and, with ``frame_change`` (the default), rotate between the file's frame and the glTF frame
+(+Y up) in which every :class:`SplatAsset` of this package lives. glTF and USD files are in
+the glTF frame already; 3DGS PLY files are in the 3DGS capture frame (+Y down), 180° about Z
+away (:data:`gsverse_format.transform.PLY_TO_GLTF`). The conversion pipeline
+(:mod:`gsverse_format.pipeline`) uses the same :data:`FRAMES` for the sources it reads.
 """
 from __future__ import annotations
 
 import os
-from typing import Iterable
-
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
+
+import numpy as np
 
 from ..errors import UsageError
-from ..model import SplatAsset, SplatCloud, SplatPrimitive
-from ..transform import PLY_TO_GLTF, rotate_splats
-from .usd import USD_SUFFIXES  # pxr itself is imported only when a USD file is used
+from ..model import Anchoring, SplatAsset, SplatPrimitive, TriangleMesh
+from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
 
-SPLAT_INPUTS = (".ply", ".glb", ".gltf") + USD_SUFFIXES
-SPLAT_OUTPUTS = (".glb", ".gltf", ".ply") + USD_SUFFIXES
+__all__ = ["Frame", "FRAMES", "Z_UP_TO_GLTF", "FileFormat", "FORMATS", "register_format",
+           "find_format", "suffixes", "rotate_asset", "read_asset", "write_asset"]
+
+#: Z-up scene (Blender world) -> glTF +Y up: (x, y, z) -> (x, z, −y).
+Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A coordinate frame a file or a source may use: the proper rotation ``to_gltf`` that
+    takes it to the glTF frame, and the note the pipeline prints when it applies it."""
+
+    name: str
+    to_gltf: np.ndarray
+    note: str
+
+
+#: Every coordinate frame by name.
+FRAMES: dict[str, Frame] = {f.name: f for f in (
+    Frame("gltf", np.eye(3), ""),
+    Frame("3dgs", PLY_TO_GLTF,
+          "3DGS frame (+Y down) rotated 180 degrees about Z into glTF (+Y up)"),
+    Frame("z-up", Z_UP_TO_GLTF, "Z-up scene rotated into glTF (+Y up) by (x, y, z) -> (x, z, -y)"),
+)}
 
 
 @dataclass(frozen=True)
@@ -44,67 +73,76 @@ def register_format(name: str, suffixes: tuple[str, ...], *,
                     read: Callable[..., SplatAsset] | None = None,
                     write: Callable[..., Any] | None = None, frame: str = "gltf") -> None:
     """Register a format under its file suffixes (each format package calls this once)."""
+    if frame not in FRAMES:
+        raise ValueError(f"unknown frame {frame!r}; use one of {', '.join(FRAMES)}")
     fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame)
     for suffix in fmt.suffixes:
         FORMATS[suffix] = fmt
 
 
-def _ext(path: str | os.PathLike) -> str:
+def suffixes(kind: str = "read", name: str | None = None) -> tuple[str, ...]:
+    """The registered suffixes that can be read (``kind="read"``) or written (``"write"``),
+    of the format ``name`` only when given."""
+    return tuple(s for s, f in FORMATS.items()
+                 if getattr(f, kind) is not None and (name is None or f.name == name))
+
+
+def _ext(path: str | os.PathLike[str]) -> str:
     return os.path.splitext(os.fspath(path))[1].lower()
 
 
-def read_asset(path: str | os.PathLike, *, frame_change: bool = True) -> SplatAsset:
-    """Read splats from a 3DGS PLY, a KHR_gaussian_splatting glTF/GLB or a USD file."""
+def find_format(path: str | os.PathLike[str], kind: str = "read") -> FileFormat:
+    """The format that reads (``kind="read"``) or writes (``"write"``) ``path``, by its suffix;
+    :class:`UsageError` naming the supported suffixes when there is none."""
     ext = _ext(path)
-    if ext == ".ply":
-        from .ply import read_splat_ply
-
-        cloud = read_splat_ply(path)
-        if frame_change:
-            cloud = rotate_splats(cloud, PLY_TO_GLTF)
-        name = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-        return SplatAsset([SplatPrimitive(cloud, None, name)])
-    if ext in (".glb", ".gltf"):
-        from .gltf import read_gltf
-
-        return read_gltf(path)
-    if ext in USD_SUFFIXES:
-        from .usd import read_usd
-
-        return read_usd(path)
-    raise UsageError(f"unsupported splat input format {ext or '(no extension)'}; "
-                     f"use one of {', '.join(SPLAT_INPUTS)}", path)
+    fmt = FORMATS.get(ext)
+    if fmt is None or getattr(fmt, kind) is None:
+        what = "splat input" if kind == "read" else "output"
+        raise UsageError(f"unsupported {what} format {ext or '(no extension)'}; "
+                         f"use one of {', '.join(suffixes(kind))}", path)
+    return fmt
 
 
-def write_asset(asset: SplatAsset, path: str | os.PathLike, *, frame_change: bool = True,
-                protect: Iterable[str | os.PathLike] = (), bake_poses=None) -> None:
-    """Write ``asset``; PLY output holds all splats of all primitives (no anchoring).
+def rotate_asset(asset: SplatAsset, rotation: np.ndarray) -> SplatAsset:
+    """``asset`` rotated by the proper rotation ``rotation``: splats and anchor meshes (an
+    anchor mesh shared by several primitives stays shared); anchors are relative to their
+    triangles and do not change."""
+    meshes: dict[int, TriangleMesh] = {}
 
-    ``bake_poses`` (a :class:`gsverse_format.io.usd.BakedPoses`) is for USD output only.
-    """
-    ext = _ext(path)
-    protect = tuple(protect)
-    if bake_poses is not None and ext not in USD_SUFFIXES:
-        raise UsageError(f"baked poses need a USD output ({', '.join(USD_SUFFIXES)})", path)
-    if ext in USD_SUFFIXES:
-        from .usd import write_usd
+    def mesh(m: TriangleMesh) -> TriangleMesh:
+        if id(m) not in meshes:
+            meshes[id(m)] = rotate_mesh(m, rotation)
+        return meshes[id(m)]
 
-        write_usd(asset, path, protect=protect, bake_poses=bake_poses)
-        return
-    if ext in (".glb", ".gltf"):
-        from .gltf import write_gltf
+    return SplatAsset([SplatPrimitive(rotate_splats(p.splats, rotation),
+                                      Anchoring(mesh(p.anchoring.mesh), p.anchoring.anchors)
+                                      if p.anchoring is not None else None, p.name)
+                       for p in asset.primitives], asset.generator)
 
-        write_gltf(asset, path, protect=protect)
-        return
-    if ext == ".ply":
-        from .ply import write_splat_ply
 
-        if not asset.primitives:
-            raise UsageError("nothing to write: the asset has no splats", path)
-        cloud = SplatCloud.concatenate([p.splats for p in asset.primitives])
-        if frame_change:
-            cloud = rotate_splats(cloud, PLY_TO_GLTF)
-        write_splat_ply(cloud, path, protect=protect)
-        return
-    raise UsageError(f"unsupported output format {ext or '(no extension)'}; "
-                     f"use one of {', '.join(SPLAT_OUTPUTS)}", path)
+def read_asset(path: str | os.PathLike[str], *, frame_change: bool = True) -> SplatAsset:
+    """Read splats from any registered format (3DGS PLY, KHR_gaussian_splatting glTF/GLB, USD)
+    into the glTF frame (in the file's own frame with ``frame_change=False``)."""
+    fmt = find_format(path, "read")
+    assert fmt.read is not None
+    asset = fmt.read(path)
+    if frame_change and fmt.frame != "gltf":
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+    return asset
+
+
+def write_asset(asset: SplatAsset, path: str | os.PathLike[str], *, frame_change: bool = True,
+                protect: Iterable[str | os.PathLike[str]] = (), **options: Any) -> None:
+    """Write ``asset`` (in the glTF frame; taken as is with ``frame_change=False``) in the
+    format of ``path``'s suffix. ``options`` go to the format's writer: ``bake_poses`` (a
+    :class:`gsverse_format.io.usd.BakedPoses`) is for USD output only. PLY output holds all
+    splats of all primitives (no anchoring)."""
+    fmt = find_format(path, "write")
+    assert fmt.write is not None
+    options = {k: v for k, v in options.items() if v is not None}
+    if "bake_poses" in options and fmt.name != "usd":
+        raise UsageError(f"baked poses need a USD output ({', '.join(suffixes('write', 'usd'))})",
+                         path)
+    if frame_change and fmt.frame != "gltf":
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf.T)
+    fmt.write(asset, path, protect=tuple(protect), **options)

@@ -1,44 +1,76 @@
-"""The conversion pipeline behind ``gsverse-convert``.
+"""The conversion pipeline behind ``gsverse-convert``: one input, top to bottom.
 
-load the source (:mod:`gsverse_format.converters`) → truncate SH → decimate the mesh
-(``faces``) → bind splats that have no exact anchors to their nearest triangle → keep only what
-the scene requires (splats farther than ``max_distance`` from the mesh stay plain, or are
-dropped) → sort anchored splats by face → write atomically.
+:func:`convert` runs these steps in order:
 
-Library users call :func:`convert`; the command line (:mod:`gsverse_format.cli.convert`) only
-parses options and prints the returned :class:`ConvertSummary`.
+1. check the options;
+2. format conversion only (``plain``, or a glTF/USD input or a PLY output without a mesh):
+   read the file into the glTF frame (:func:`gsverse_format.io.registry.read_asset`; anchoring
+   a glTF or USD file holds is kept), truncate SH, and go to 7;
+3. otherwise load the source (``--from``, or detected: the table of
+   :mod:`gsverse_format.converters.registry`) — splats, mesh, maybe exact anchors, in the
+   source's own frame;
+4. rotate that into the glTF frame (:func:`to_gltf`): the one place where a source's
+   coordinates change frame (the frames are :data:`gsverse_format.io.registry.FRAMES`);
+5. reconstruct an anchor mesh from the splats when the source has none
+   (:func:`gsverse_format.converters.reconstruct.reconstruct_mesh`, about
+   ``reconstruct_faces`` faces);
+6. truncate SH → decimate the mesh to ``faces`` → bind splats that have no exact anchors to
+   their nearest triangle → keep only what the scene requires (splats farther than
+   ``max_distance`` from the mesh stay plain, or are dropped) → sort anchored splats by face;
+7. write atomically (:func:`gsverse_format.io.registry.write_asset`, from the glTF frame into
+   the output file's).
+
+Steps 3–5 are :func:`load_source`. Library users call :func:`convert`; the command line
+(:mod:`gsverse_format.cli.convert`) only parses options and prints the returned
+:class:`ConvertSummary`.
 """
 from __future__ import annotations
 
 import os
 import time
+import warnings
 from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from .binding import bind_local
-from .converters import detect_source, loader
-from .converters.base import SourceOptions, SourceResult
+from .converters import detect_source, get_source
+from .converters.base import SourceOptions, SourceResult, TrellisFrame
+from .converters.reconstruct import reconstruct_mesh
 from .errors import GsverseError, UsageError
-from .io.registry import SPLAT_OUTPUTS, USD_SUFFIXES, read_asset, write_asset
-from .model import Anchoring, LocalAnchors, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
+from .io.registry import FORMATS, FRAMES, find_format, read_asset, suffixes, write_asset
+from .model import (Anchoring, DeformationLaw, LocalAnchors, SplatAsset, SplatCloud,
+                    SplatPrimitive, TriangleMesh)
 from .nearest import closest_points_on_triangles
 from .progress import Progress
+from .transform import rotate_mesh, rotate_splats
+
+__all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "to_gltf"]
+
+#: Formats whose files can hold anchoring (kept by a format-only conversion).
+_ANCHORING_FORMATS = ("gltf", "usd")
+#: The ``source`` a summary names for a format-only conversion, by input format.
+_FORMAT_SOURCE = {"gltf": "khr", "ply": "3dgs"}
 
 
 @dataclass
 class ConvertOptions:
     """Options of :func:`convert` (the command-line flags map one to one).
 
-    ``max_distance`` is relative to the anchor mesh's bounding-box diagonal unless
-    ``absolute_distance``; ``None`` anchors every splat. ``plain`` converts formats only
-    (no anchoring is added or kept). ``bake_poses`` names a poses file
-    (:func:`gsverse_format.io.usd.load_poses`) baked into USD time samples (USD output only).
+    ``faces`` is the face count the anchor mesh is decimated to (the resolution the physics
+    needs); ``reconstruct_faces`` the size of a mesh reconstructed from the splats when no
+    ``mesh`` is given (default: ``faces``, else 20 000). ``frame_change`` rotates from the
+    input's frame into glTF's (and from glTF's into a PLY output's). ``max_distance`` is
+    relative to the anchor mesh's bounding-box diagonal unless ``absolute_distance``; ``None``
+    anchors every splat. ``plain`` converts formats only (no anchoring is added or kept).
+    ``bake_poses`` names a poses file (:func:`gsverse_format.io.usd.load_poses`) baked into
+    USD time samples (USD output only).
     """
 
     mesh: str | None = None
     source: str = "auto"
-    deformation: str = "affine"
+    deformation: DeformationLaw = "affine"
     frame_change: bool = True
     keep_order: bool = False
     sh_degree: int | None = None
@@ -46,6 +78,7 @@ class ConvertOptions:
     absolute_distance: bool = False
     drop_unanchored: bool = False
     faces: int | None = None
+    reconstruct_faces: int | None = None
     pt_path: str | None = None
     k: int | None = None
     legacy_trellis_frame: bool = False
@@ -69,19 +102,20 @@ class ConvertSummary:
     sh_degree: int = 0
     mesh_faces: int = 0
     degenerate_faces: int = 0
-    distance: dict = field(default_factory=dict)
+    distance: dict[str, float] = field(default_factory=dict)
     max_distance: float | None = None
-    check: dict = field(default_factory=dict)
-    notes: list = field(default_factory=list)
+    check: dict[str, Any] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
     output_bytes: int = 0
     seconds: float = 0.0
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     def lines(self) -> list[str]:
         out = [f"{self.input} -> {self.output}  (source: {self.source})",
-               f"  splats     {self.splats} written: anchored {self.anchored}, static {self.static}; "
+               f"  splats     {self.splats} written: anchored {self.anchored}, static "
+               f"{self.static}; "
                f"dropped {self.dropped}; SH degree {self.sh_degree}"]
         if self.profile:
             law = f", deformation {self.deformation}" if self.deformation else ""
@@ -100,7 +134,7 @@ class ConvertSummary:
         return out
 
 
-def _distance_stats(distance: np.ndarray, diagonal: float) -> dict:
+def _distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:
     if distance.size == 0:
         return {}
     p50, p95, p99 = np.percentile(distance, [50, 95, 99])
@@ -117,8 +151,10 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
         raise UsageError(f"--max-distance must be >= 0, not {options.max_distance}")
     if options.drop_unanchored and options.max_distance is None:
         raise UsageError("--drop-unanchored needs --max-distance")
-    if options.faces is not None and options.faces < 4:
-        raise UsageError(f"--faces must be at least 4, not {options.faces}")
+    for flag, value in (("--faces", options.faces),
+                        ("--reconstruct-faces", options.reconstruct_faces)):
+        if value is not None and value < 4:
+            raise UsageError(f"{flag} must be at least 4, not {value}")
     if not os.path.exists(input_path):
         raise UsageError("file not found", input_path)
     for p in (options.mesh, options.pt_path, options.bake_poses):
@@ -127,18 +163,28 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
     folder = os.path.dirname(os.path.abspath(output_path))
     if not os.path.isdir(folder):
         raise UsageError(f"output folder {folder!r} does not exist", output_path)
-    ext = os.path.splitext(output_path)[1].lower()
-    if ext not in SPLAT_OUTPUTS:
-        raise UsageError(f"unsupported output format {ext or '(no extension)'}; "
-                         f"use one of {', '.join(SPLAT_OUTPUTS)}", output_path)
-    if options.bake_poses is not None and ext not in USD_SUFFIXES:
-        raise UsageError(f"--bake-poses needs a USD output ({', '.join(USD_SUFFIXES)})",
+    out_format = find_format(output_path, "write")
+    if options.bake_poses is not None and out_format.name != "usd":
+        raise UsageError(f"--bake-poses needs a USD output ({', '.join(suffixes('write', 'usd'))})",
                          output_path)
 
 
-def convert(input_path: str, output_path: str, options: ConvertOptions | None = None,
+def _format_only(input_path: str, output_path: str, options: ConvertOptions) -> bool:
+    """Whether this is a format conversion only: no binding involved (PLY <-> GLB <-> USD,
+    GLB -> GLB, PLY -> PLY); anchoring already present in a glTF or USD input is kept."""
+    if options.plain:
+        return True
+    if options.mesh is not None or options.source not in ("auto", "khr"):
+        return False
+    in_format = FORMATS.get(os.path.splitext(input_path)[1].lower())
+    return (in_format is not None and in_format.name in _ANCHORING_FORMATS) \
+        or find_format(output_path, "write").name == "ply"
+
+
+def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[str],
+            options: ConvertOptions | None = None,
             progress: Progress | None = None) -> ConvertSummary:
-    """Convert ``input_path`` (any supported source) to ``output_path`` (GLB/glTF/PLY)."""
+    """Convert ``input_path`` (any supported source) to ``output_path`` (any writable format)."""
     options = options or ConvertOptions()
     progress = progress or Progress(enabled=False)
     start = time.perf_counter()
@@ -148,17 +194,12 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
     protect = tuple(p for p in (input_path, options.mesh, options.pt_path, options.bake_poses)
                     if p is not None)
 
-    in_ext = os.path.splitext(input_path)[1].lower()
-    out_ext = os.path.splitext(output_path)[1].lower()
-    format_only = options.plain or (options.mesh is None and options.source in ("auto", "khr")
-                                    and (in_ext in (".glb", ".gltf") + USD_SUFFIXES
-                                         or out_ext == ".ply"))
-    if format_only:
-        # Format conversion only (PLY <-> GLB <-> USD, GLB -> GLB, PLY -> PLY): no binding
-        # involved; anchoring already present in a glTF or USD input is kept.
+    if _format_only(input_path, output_path, options):
         if options.mesh is not None:
             raise UsageError("--plain writes splats without anchoring: drop --mesh or --plain")
         progress.stage(f"reading {os.path.basename(input_path)}")
+        in_format = find_format(input_path, "read")
+        summary.source = _FORMAT_SOURCE.get(in_format.name, in_format.name)
         asset = _read_noting_usd_warnings(input_path, options, summary)
         if options.sh_degree is not None:
             for prim in asset.primitives:
@@ -167,8 +208,6 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
         if options.plain:
             asset = SplatAsset([SplatPrimitive(p.splats, None, p.name) for p in asset.primitives],
                                asset.generator)
-        summary.source = ("khr" if in_ext in (".glb", ".gltf") else
-                          "usd" if in_ext in USD_SUFFIXES else "3dgs")
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
     source = options.source
@@ -177,22 +216,60 @@ def convert(input_path: str, output_path: str, options: ConvertOptions | None = 
         summary.notes.append(f"detected source {source}: {reason}")
     summary.source = source
     progress.stage(f"reading {source} input")
-    load = loader(source)
-    src_options = SourceOptions(frame_change=options.frame_change,
-                                legacy_frame=options.legacy_trellis_frame, faces=options.faces,
-                                pt_path=options.pt_path, k=options.k)
-    result: SourceResult = load(input_path, options.mesh, src_options)
+    src_options, notes = _source_options(source, options)
+    summary.notes.extend(notes)
+    reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
+        else options.faces
+    result = load_source(source, input_path, options.mesh, src_options,
+                         frame_change=options.frame_change, reconstruct_faces=reconstruct_faces)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
     asset = _anchor(result, options, progress, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
 
+def _source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions, list[str]]:
+    """What the loaders get from the command line, and notes on flags that do not apply."""
+    notes: list[str] = []
+    trellis_frame: TrellisFrame = "legacy" if options.legacy_trellis_frame else "current"
+    if not options.frame_change:
+        trellis_frame = "none"
+        if options.legacy_trellis_frame and source == "trellis":
+            notes.append("--legacy-trellis-frame ignored: --no-frame-change keeps the PLY as is")
+    return SourceOptions(pt_path=options.pt_path, k=options.k, trellis_frame=trellis_frame), notes
+
+
+def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
+                options: SourceOptions | None = None, *, frame_change: bool = True,
+                reconstruct_faces: int | None = None) -> SourceResult:
+    """Load ``source``'s output (steps 3–5 of :func:`convert`): the loader's result rotated
+    into the glTF frame (unless ``frame_change`` is off), with an anchor mesh of about
+    ``reconstruct_faces`` faces reconstructed from the splats when the source has none.
+    (TRELLIS's PLY-to-GLB frame is ``options.trellis_frame``; :func:`convert` sets it to
+    ``"none"`` with ``frame_change`` off.)"""
+    path = os.fspath(input_path)
+    result = get_source(source).load(path, mesh_path, options or SourceOptions())
+    if frame_change:
+        result = to_gltf(result)
+    if result.mesh is None:
+        result = reconstruct_mesh(result, reconstruct_faces, path)
+    return result
+
+
+def to_gltf(result: SourceResult) -> SourceResult:
+    """``result`` rotated from its frame into the glTF frame: splats and mesh; the anchors are
+    relative to their triangles and stay as they are."""
+    frame = FRAMES[result.frame]
+    if frame.name == "gltf":
+        return result
+    mesh = rotate_mesh(result.mesh, frame.to_gltf) if result.mesh is not None else None
+    return replace(result, splats=rotate_splats(result.splats, frame.to_gltf), mesh=mesh,
+                   notes=result.notes + [frame.note], frame="gltf")
+
+
 def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
                               summary: ConvertSummary) -> SplatAsset:
     """``read_asset``; what the USD reader replaced in foreign data goes to the summary notes."""
-    import warnings
-
     from .io.usd import UsdReadWarning
 
     with warnings.catch_warnings(record=True) as caught:
@@ -206,18 +283,21 @@ def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
     return asset
 
 
-def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions, protect: tuple,
-            summary: ConvertSummary, progress: Progress, start: float) -> ConvertSummary:
+def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
+            protect: tuple[str, ...], summary: ConvertSummary, progress: Progress,
+            start: float) -> ConvertSummary:
+    """Step 7: fill the summary and write ``asset``."""
     summary.splats = asset.splat_count()
     summary.anchored = sum(len(p.splats) for p in asset.anchored)
     summary.static = sum(len(p.splats) for p in asset.static)
     summary.sh_degree = max((p.splats.sh_degree for p in asset.primitives), default=0)
     if asset.anchored and summary.profile is None:
         anchoring = asset.anchored[0].anchoring
+        assert anchoring is not None
         summary.profile = anchoring.anchors.profile
         summary.deformation = getattr(anchoring.anchors, "deformation", None)
         summary.mesh_faces = anchoring.mesh.face_count
-    if os.path.splitext(output_path)[1].lower() == ".ply" and asset.anchored:
+    if find_format(output_path, "write").name == "ply" and asset.anchored:
         summary.notes.append("PLY output stores plain splats: the anchoring is not written")
     poses = None
     if options.bake_poses is not None:
@@ -234,17 +314,18 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions, protec
     return summary
 
 
-def _face_distances(splats: SplatCloud, mesh: TriangleMesh, face: np.ndarray) -> np.ndarray:
-    tri = mesh.triangles()[face.astype(np.intp)]
-    _, _, dist = closest_points_on_triangles(splats.means.astype(np.float64), tri[:, 0], tri[:, 1], tri[:, 2])
+def _face_distances(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray) -> np.ndarray:
+    tri = mesh.triangles()[face_index.astype(np.intp)]
+    _, _, dist = closest_points_on_triangles(splats.means.astype(np.float64), tri[:, 0],
+                                             tri[:, 1], tri[:, 2])
     return dist
 
 
 def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
             summary: ConvertSummary) -> SplatAsset:
+    """Step 6: SH, decimation, binding, what the scene requires, order."""
     splats, mesh, anchors = result.splats, result.mesh, result.anchors
-    if mesh is None:
-        raise UsageError("this source needs an anchor mesh: pass --mesh", summary.input)
+    assert mesh is not None  # load_source reconstructs a missing mesh
     if options.sh_degree is not None and splats.sh_degree > options.sh_degree:
         splats = splats.with_sh_degree(options.sh_degree)
     if options.faces is not None and mesh.face_count > options.faces:
@@ -253,8 +334,8 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         progress.stage(f"decimating {mesh.face_count} -> {options.faces} faces")
         mesh = decimate(mesh, options.faces)
         if anchors is not None:
-            summary.notes.append(f"--faces: the source's exact binding was replaced by nearest-"
-                                 f"triangle binding to the decimated mesh (local profile)")
+            summary.notes.append("--faces: the source's exact binding was replaced by nearest-"
+                                 "triangle binding to the decimated mesh (local profile)")
             anchors = None
     if anchors is None:
         progress.stage("binding to the nearest triangles")

@@ -1,18 +1,15 @@
-"""Compiled exact nearest-triangle search (numba), bit-identical to :mod:`gsverse_format.nearest`.
+"""Compiled exact nearest-triangle search (numba), bit-identical to the numpy reference.
 
 :func:`nearest_triangles_numba` answers the same question as the numpy reference
-:func:`gsverse_format.nearest.nearest_triangles` and returns the same
-:class:`~gsverse_format.nearest.NearestResult`, face for face and bit for bit; only the search
-structure differs.
+:func:`gsverse_format.nearest_reference.nearest_triangles_numpy` and returns the same
+:class:`~gsverse_format.nearest_reference.NearestResult`, face for face and bit for bit; only
+the search structure differs. Callers use :func:`gsverse_format.nearest.nearest_triangles`,
+which picks one of the two (:mod:`gsverse_format.backend`).
 
 Point–triangle distance
-    The kernel is a scalar transcription of the reference kernel (``_face_table`` and
-    ``_kernel`` in :mod:`gsverse_format.nearest`): the same per-face constants (``a``, ``ab``,
-    ``ac``, the dual basis ``e_v``, ``e_w`` and the degenerate flag), the same Voronoi-region
-    precedence (vertex A, vertex B, edge AB, vertex C, edge AC, edge BC, face), the same
-    edge-segment fallback for degenerate triangles and for face-region results outside the
-    simplex, and the same order of every floating-point operation. Compiled without fast-math,
-    nothing is reassociated or fused, so each distance equals the reference's in float64.
+    The scalar kernel of :mod:`gsverse_format.nearest_compiled_kernel`, a transcription of the
+    reference kernel in the same order of floating-point operations: each distance equals the
+    reference's in float64.
 
 Search and certificate
     One binary BVH over the selectable faces: median splits of the centroids along their widest
@@ -37,7 +34,8 @@ Ties
     number of threads.
 
 Units are those of the input coordinates; all distance arithmetic is float64. Compiled code is
-cached on disk (``cache=True``, next to this module or under ``NUMBA_CACHE_DIR``); the first call
+cached on disk (``cache=True``, next to this module or under ``NUMBA_CACHE_DIR``; see
+:mod:`gsverse_format.nearest_compiled_kernel` on editing the kernel); the first call
 in a fresh environment compiles it, which takes 10–20 s (:func:`warm_up` does it up front).
 Throughput against other tools: ``python -m benchmarks.binding``.
 """
@@ -47,13 +45,14 @@ from typing import Callable
 
 import numba
 import numpy as np
-from numba import njit, prange, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit, prange
+from numpy.typing import ArrayLike
 
-from .nearest import DEGENERATE_RATIO, NearestResult, _MARGIN, _prepare
+from .nearest_compiled_kernel import (RECORD_WIDTH, closest_point, f32_down, f32_up, face_record,
+                                      fetch_add, max3, min3)
+from .nearest_reference import MARGIN, NearestResult, prepare_query
 
-__all__ = ["nearest_triangles_numba", "build_tree", "query_tree", "warm_up"]
+__all__ = ["Tree", "nearest_triangles_numba", "build_tree", "query_tree", "warm_up"]
 
 _LEAF = 4                 # faces per BVH leaf (leaf j holds positions 4j .. 4j + 3)
 _BLOCK = 64               # consecutive (Morton-sorted) queries handed to a thread at once
@@ -61,168 +60,6 @@ _STACK = 128              # traversal stack depth (the tree depth is at most ~lo
 _SPLIT_TASKS = 32         # the top of the tree is split until this many subtrees remain
 _ORDER_BITS = 6           # Morton grid of the query sort: 2^6 cells per axis
 _SQRT_GAP = 1.0 + 4e-15   # d2 > best2 * gap implies sqrt(d2) > sqrt(best2) after rounding
-
-# Record columns of a face (one row per face, in tree order).
-_R_DEG = 15
-_NREC = 16
-
-
-# --------------------------------------------------------------------------- helpers
-
-@intrinsic
-def _fetch_add(typingctx, arr, val):
-    """Atomically add ``val`` to ``arr[0]`` (int64) and return the previous value."""
-    sig = types.int64(arr, types.int64)
-
-    def codegen(context, builder, signature, args):
-        a, v = args
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, a)
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary,
-                                       [context.get_constant(types.intp, 0)])
-        return builder.atomic_rmw("add", ptr, v, "monotonic")
-
-    return sig, codegen
-
-
-@njit(cache=True, inline="always")
-def _nanmax(a, b):
-    """``np.maximum`` for scalars (NaN propagates)."""
-    if a != a or b != b:
-        return np.nan
-    return a if a >= b else b
-
-
-@njit(cache=True, inline="always")
-def _clip01(t):
-    return min(max(t, 0.0), 1.0)
-
-
-@njit(cache=True, inline="always")
-def _min3(a, b, c):
-    return min(min(a, b), c)
-
-
-@njit(cache=True, inline="always")
-def _max3(a, b, c):
-    return max(max(a, b), c)
-
-
-_F32_MAX = 3.4028234663852886e38
-_F32_TINY = 1.1754943508222875e-38        # smallest normal float32
-
-
-@njit(cache=True, inline="always")
-def _f32_down(x):
-    """A float32 not above ``x`` (the nearest one, or up to two steps below it).
-
-    ``g - |g| 2^-23`` is exact in float64 and lies one to two float32 steps below ``g``, so
-    its rounding is at or below ``g``'s predecessor, which is below ``x`` when ``g > x`` (for
-    normal ``g``; zero, subnormals and overflow take ``nextafter``).
-    """
-    f = np.float32(x)
-    g = np.float64(f)
-    if g > x:
-        if _F32_TINY <= abs(g) <= _F32_MAX:
-            f = np.float32(g - abs(g) * 1.1920928955078125e-07)
-        else:
-            f = np.nextafter(f, np.float32(-np.inf))
-    return f
-
-
-@njit(cache=True, inline="always")
-def _f32_up(x):
-    """A float32 not below ``x`` (mirror of :func:`_f32_down`)."""
-    f = np.float32(x)
-    g = np.float64(f)
-    if g < x:
-        if _F32_TINY <= abs(g) <= _F32_MAX:
-            f = np.float32(g + abs(g) * 1.1920928955078125e-07)
-        else:
-            f = np.nextafter(f, np.float32(np.inf))
-    return f
-
-
-# --------------------------------------------------------------------------- kernel
-
-@njit(cache=True)
-def _segments(apx, apy, apz, abx, aby, abz, acx, acy, acz, abab, acac):
-    """Closest point among the three edges as (v, w); transcription of ``nearest._segments``."""
-    t1 = (abx * apx + aby * apy + abz * apz) / abab if abab > 0 else 0.0
-    t1 = _clip01(t1)
-    ex, ey, ez = apx - t1 * abx, apy - t1 * aby, apz - t1 * abz
-    best = ex * ex + ey * ey + ez * ez
-    v, w = t1, 0.0
-    t2 = (acx * apx + acy * apy + acz * apz) / acac if acac > 0 else 0.0
-    t2 = _clip01(t2)
-    ex, ey, ez = apx - t2 * acx, apy - t2 * acy, apz - t2 * acz
-    d2 = ex * ex + ey * ey + ez * ez
-    if d2 < best:
-        best = d2
-        v, w = 0.0, t2
-    bcx, bcy, bcz = acx - abx, acy - aby, acz - abz
-    bpx, bpy, bpz = apx - abx, apy - aby, apz - abz
-    bcbc = bcx * bcx + bcy * bcy + bcz * bcz
-    t3 = (bcx * bpx + bcy * bpy + bcz * bpz) / bcbc if bcbc > 0 else 0.0
-    t3 = _clip01(t3)
-    ex, ey, ez = bpx - t3 * bcx, bpy - t3 * bcy, bpz - t3 * bcz
-    d2 = ex * ex + ey * ey + ez * ez
-    if d2 < best:
-        v, w = 1.0 - t3, t3
-    return v, w
-
-
-@njit(cache=True)
-def _closest(r, px, py, pz):
-    """(v, w, squared distance) of the closest point of face record ``r`` to ``p``.
-
-    Scalar transcription of ``nearest._kernel``: the region tests in order of precedence,
-    every expression in the reference's operation order.
-    """
-    ax, ay, az = r[0], r[1], r[2]
-    abx, aby, abz = r[3], r[4], r[5]
-    acx, acy, acz = r[6], r[7], r[8]
-    apx, apy, apz = px - ax, py - ay, pz - az
-    abab = abx * abx + aby * aby + abz * abz
-    acac = acx * acx + acy * acy + acz * acz
-    if r[_R_DEG] != 0.0:
-        v, w = _segments(apx, apy, apz, abx, aby, abz, acx, acy, acz, abab, acac)
-    else:
-        abac = abx * acx + aby * acy + abz * acz
-        d1 = abx * apx + aby * apy + abz * apz
-        d2 = acx * apx + acy * apy + acz * apz
-        d3 = d1 - abab
-        d4 = d2 - abac
-        d5 = d1 - abac
-        d6 = d2 - acac
-        if d1 <= 0 and d2 <= 0:                                        # vertex A
-            v, w = 0.0, 0.0
-        elif d3 >= 0 and d4 <= d3:                                     # vertex B
-            v, w = 1.0, 0.0
-        elif (d1 * d4 - d3 * d2) <= 0 and d1 >= 0 and d3 <= 0:         # edge AB
-            den = d1 - d3
-            v, w = _clip01(d1 / den if den > 0 else 0.0), 0.0
-        elif d6 >= 0 and d5 <= d6:                                     # vertex C
-            v, w = 0.0, 1.0
-        elif (d5 * d2 - d1 * d6) <= 0 and d2 >= 0 and d6 <= 0:         # edge AC
-            den = d2 - d6
-            v, w = 0.0, _clip01(d2 / den if den > 0 else 0.0)
-        else:
-            e43, e56 = d4 - d3, d5 - d6
-            if (d3 * d6 - d5 * d4) <= 0 and e43 >= 0 and e56 >= 0:     # edge BC
-                den = e43 + e56
-                t = _clip01(e43 / den if den > 0 else 0.0)
-                v, w = 1.0 - t, t
-            else:                                                      # face
-                v = apx * r[9] + apy * r[10] + apz * r[11]
-                w = apx * r[12] + apy * r[13] + apz * r[14]
-                if not (v >= 0 and w >= 0 and v + w <= 1):
-                    v, w = _segments(apx, apy, apz, abx, aby, abz, acx, acy, acz, abab, acac)
-    cx = ax + v * abx + w * acx
-    cy = ay + v * aby + w * acy
-    cz = az + v * abz + w * acz
-    ex, ey, ez = px - cx, py - cy, pz - cz
-    return v, w, ex * ex + ey * ey + ez * ez
 
 
 # --------------------------------------------------------------------------- hierarchy
@@ -302,47 +139,6 @@ def _split(cent, perm, child, node, s, n):
 
 
 @njit(cache=True)
-def _record(V, F, f, r):
-    """Kernel constants of face ``f`` into ``r`` (the arithmetic of ``nearest._face_table``).
-
-    Returns the (unnormalised) normal ``ab × ac``.
-    """
-    i0, i1, i2 = F[f, 0], F[f, 1], F[f, 2]
-    ax, ay, az = V[i0, 0], V[i0, 1], V[i0, 2]
-    abx, aby, abz = V[i1, 0] - ax, V[i1, 1] - ay, V[i1, 2] - az
-    acx, acy, acz = V[i2, 0] - ax, V[i2, 1] - ay, V[i2, 2] - az
-    abab = abx * abx + aby * aby + abz * abz
-    acac = acx * acx + acy * acy + acz * acz
-    nx = aby * acz - abz * acy
-    ny = abz * acx - abx * acz
-    nz = abx * acy - aby * acx
-    nn = nx * nx + ny * ny + nz * nz
-    bcx, bcy, bcz = acx - abx, acy - aby, acz - abz
-    lmax2 = _nanmax(_nanmax(abab, acac), bcx * bcx + bcy * bcy + bcz * bcz)
-    t = DEGENERATE_RATIO * lmax2
-    regular = np.isfinite(nn) and nn > t * t
-    inv = 1.0 / nn if regular else 0.0
-    r[0], r[1], r[2] = ax, ay, az
-    r[3], r[4], r[5] = abx, aby, abz
-    r[6], r[7], r[8] = acx, acy, acz
-    r[9] = (acy * nz - acz * ny) * inv
-    r[10] = (acz * nx - acx * nz) * inv
-    r[11] = (acx * ny - acy * nx) * inv
-    r[12] = (ny * abz - nz * aby) * inv
-    r[13] = (nz * abx - nx * abz) * inv
-    r[14] = (nx * aby - ny * abx) * inv
-    r[15] = 0.0 if regular else 1.0
-    return nx, ny, nz
-
-
-@njit(cache=True)
-def _records(V, F, face_of, rec):
-    """Kernel constants of face ``face_of[k]`` into ``rec[k]``."""
-    for k in range(face_of.shape[0]):
-        _record(V, F, face_of[k], rec[k])
-
-
-@njit(cache=True)
 def _leaf(V, F, face_of, j, rec, box, slab):
     """Records of the faces of leaf ``j``, and the leaf's box (lo, hi) and slab (unit normal
     ``n``, min and max of ``n·x`` over its corners)."""
@@ -353,14 +149,14 @@ def _leaf(V, F, face_of, j, rec, box, slab):
     sx, sy, sz = 0.0, 0.0, 0.0
     for k in range(j * _LEAF, end):
         f = face_of[k]
-        nx, ny, nz = _record(V, F, f, rec[k])
+        nx, ny, nz = face_record(V, F, f, rec[k])
         sx += nx
         sy += ny
         sz += nz
         for d in range(3):
             x0, x1, x2 = V[F[f, 0], d], V[F[f, 1], d], V[F[f, 2], d]
-            box[j, d] = min(box[j, d], _min3(x0, x1, x2))
-            box[j, 3 + d] = max(box[j, 3 + d], _max3(x0, x1, x2))
+            box[j, d] = min(box[j, d], min3(x0, x1, x2))
+            box[j, 3 + d] = max(box[j, 3 + d], max3(x0, x1, x2))
     norm = np.sqrt(sx * sx + sy * sy + sz * sz)
     if not (norm > 0 and np.isfinite(norm)):
         for d in range(5):
@@ -385,8 +181,8 @@ def _node_box(k, child, leafbox, own, cbox):
         ref = child[k, side]
         b = own[ref] if ref >= 0 else leafbox[-ref - 1]
         for d in range(3):
-            cbox[k, 6 * side + d] = _f32_down(b[d])
-            cbox[k, 6 * side + 3 + d] = _f32_up(b[3 + d])
+            cbox[k, 6 * side + d] = f32_down(b[d])
+            cbox[k, 6 * side + 3 + d] = f32_up(b[3 + d])
         if side == 0:
             for d in range(6):
                 own[k, d] = b[d]
@@ -475,7 +271,7 @@ def _build_tasks(V, F, cent, perm, child, rec, leafbox, slab, cbox, own,
     counter = np.zeros(1, np.int64)
     for _ in prange(n_threads):
         while True:
-            i = _fetch_add(counter, 1)
+            i = fetch_add(counter, 1)
             if i >= t_node.shape[0]:
                 break
             _build_task(V, F, cent, perm, child, rec, leafbox, slab, cbox, own,
@@ -505,13 +301,14 @@ class Tree:
     ``scale`` the largest magnitude of the selectable faces' vertex coordinates.
     """
 
-    def __init__(self, rec, face, child, cbox, slab, root, scale):
+    def __init__(self, rec: np.ndarray, face: np.ndarray, child: np.ndarray, cbox: np.ndarray,
+                 slab: np.ndarray, root: int, scale: float) -> None:
         self.rec, self.face = rec, face
         self.child, self.cbox, self.slab = child, cbox, slab
         self.root, self.scale = int(root), float(scale)
 
 
-def build_tree(vertices: np.ndarray, faces: np.ndarray, idx: np.ndarray) -> Tree:
+def build_tree(vertices: ArrayLike, faces: ArrayLike, idx: ArrayLike) -> Tree:
     """BVH over faces ``faces[idx]`` of ``vertices`` (float64 (V, 3), int64 (F, 3))."""
     V = np.ascontiguousarray(vertices, dtype=np.float64)
     F = np.ascontiguousarray(faces, dtype=np.int64)
@@ -523,7 +320,7 @@ def build_tree(vertices: np.ndarray, faces: np.ndarray, idx: np.ndarray) -> Tree
     perm = idx.copy()
     child = np.empty((n_inner, 2), np.int64)
     top, t_node, t_s, t_n = _build_top(V, F, idx, cent, perm, child, _SPLIT_TASKS)
-    rec = np.empty((nf, _NREC))
+    rec = np.empty((nf, RECORD_WIDTH))
     leafbox = np.empty((n_leaves, 6))
     slab = np.empty((n_leaves, 5))
     cbox = np.empty((n_inner, 12), np.float32)
@@ -552,9 +349,9 @@ def _face_box_dist2(r, px, py, pz):
     x0, y0, z0 = r[0], r[1], r[2]
     x1, y1, z1 = x0 + r[3], y0 + r[4], z0 + r[5]
     x2, y2, z2 = x0 + r[6], y0 + r[7], z0 + r[8]
-    dx = max(max(_min3(x0, x1, x2) - px, 0.0), px - _max3(x0, x1, x2))
-    dy = max(max(_min3(y0, y1, y2) - py, 0.0), py - _max3(y0, y1, y2))
-    dz = max(max(_min3(z0, z1, z2) - pz, 0.0), pz - _max3(z0, z1, z2))
+    dx = max(max(min3(x0, x1, x2) - px, 0.0), px - max3(x0, x1, x2))
+    dy = max(max(min3(y0, y1, y2) - py, 0.0), py - max3(y0, y1, y2))
+    dz = max(max(min3(z0, z1, z2) - pz, 0.0), pz - max3(z0, z1, z2))
     return dx * dx + dy * dy + dz * dz
 
 
@@ -611,7 +408,7 @@ def _search(rec, face, child, cbox, slab, root, scale, px, py, pz, st_node, st_l
                 for k in range(j * _LEAF, min(j * _LEAF + _LEAF, nf)):
                     if _face_box_dist2(rec[k], px, py, pz) > thr2:
                         continue                   # the face's own box is too far
-                    v, w, d2 = _closest(rec[k], px, py, pz)
+                    v, w, d2 = closest_point(rec[k], px, py, pz)
                     if d2 > best2 * _SQRT_GAP:
                         continue               # sqrt(d2) > best: cannot win, not even a tie
                     d = np.sqrt(d2)
@@ -633,7 +430,7 @@ def _search(rec, face, child, cbox, slab, root, scale, px, py, pz, st_node, st_l
 @njit(cache=True, inline="always")
 def _threshold2(best, qabs):
     """Square of ``d* + m``: boxes farther than this cannot hold a face at distance ``d*``."""
-    t = best + _MARGIN * (qabs + best)
+    t = best + MARGIN * (qabs + best)
     return t * t
 
 
@@ -648,7 +445,7 @@ def _query(P, order, lo, hi, rec, face, child, cbox, slab, root, scale, n_thread
         st_node = np.empty(_STACK, np.int64)
         st_lb = np.empty(_STACK)
         while True:
-            b = _fetch_add(counter, 1)
+            b = fetch_add(counter, 1)
             if b >= n_blocks:
                 break
             for i in range(lo + b * _BLOCK, min(lo + b * _BLOCK + _BLOCK, hi)):
@@ -707,12 +504,13 @@ def _sort_queries(P):
     return order, Ps
 
 
-def query_tree(tree: Tree, points: np.ndarray, *, chunk: int = 65536,
+def query_tree(tree: Tree | None, points: ArrayLike, *, chunk: int = 65536,
                progress: Callable[[int, int], None] | None = None) -> NearestResult:
     """Nearest faces of ``points`` (finite float64 (N, 3)) in ``tree``; see the module docstring.
 
     Points are searched in a spatial order, ``chunk`` at a time (``progress(done, total)`` is
-    called after each); the result does not depend on ``chunk``.
+    called after each); the result does not depend on ``chunk``. ``tree`` may be None only
+    when there are no points.
     """
     P = np.ascontiguousarray(points, dtype=np.float64)
     n = P.shape[0]
@@ -721,6 +519,8 @@ def query_tree(tree: Tree, points: np.ndarray, *, chunk: int = 65536,
         if progress is not None:
             progress(0, 0)
         return res
+    if tree is None:
+        raise ValueError("query_tree needs a tree for a non-empty query")
     order, Ps = _sort_queries(P)
     threads = numba.get_num_threads()
     for lo in range(0, n, chunk):
@@ -733,11 +533,13 @@ def query_tree(tree: Tree, points: np.ndarray, *, chunk: int = 65536,
     return res
 
 
-def nearest_triangles_numba(points, vertices, faces, *, exclude: np.ndarray | None = None,
-                            chunk: int = 65536,
-                            progress: Callable[[int, int], None] | None = None) -> NearestResult:
-    """Compiled :func:`gsverse_format.nearest.nearest_triangles`: same arguments, same result."""
-    P, V, F, idx = _prepare(points, vertices, faces, exclude, chunk)
+def nearest_triangles_numba(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
+                            exclude: ArrayLike | None = None, chunk: int = 65536,
+                            progress: Callable[[int, int], None] | None = None
+                            ) -> NearestResult:
+    """Compiled :func:`~gsverse_format.nearest_reference.nearest_triangles_numpy`: same
+    arguments, same result, bit for bit."""
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
     if P.shape[0] == 0:
         return query_tree(None, P, chunk=chunk, progress=progress)
     return query_tree(build_tree(V, F, idx), P, chunk=chunk, progress=progress)

@@ -26,6 +26,10 @@ triangle, see :func:`gsverse_format.frames.games_frames`)::
 Rotation/scale pairs are not unique; the covariance is the normative output. For the affine law
 the reported pair comes from the SVD of M, with axes ordered and signed to match R_l, so that at
 rest the stored rotation and scale come back unchanged.
+
+This module is the reference. The per-frame float32 path is :mod:`gsverse_format.remap_fast`
+(compiled kernels in :mod:`gsverse_format.remap_compiled`, error bounds against this module in
+:mod:`gsverse_format.remap_bounds`).
 """
 from __future__ import annotations
 
@@ -35,10 +39,10 @@ from typing import Iterator
 import numpy as np
 
 from . import quaternion as quat
-from .frames import GAMES_EPS, games_frames, local_frames
-from .model import Anchoring, GamesAnchors, LocalAnchors, SplatCloud
+from .frames import GAMES_EPS, LocalFrames, games_frames, local_frames
+from .model import Anchoring, GamesAnchors, LocalAnchors
 
-__all__ = ["RemapResult", "remap", "remap_primitive_splats", "RestData", "prepare_rest",
+__all__ = ["RemapResult", "remap", "RestData", "prepare_rest",
            "remap_moments", "iter_moments", "covariance_entries", "face_matrices",
            "covariances_from"]
 
@@ -77,7 +81,7 @@ def prepare_rest(rest_triangles: np.ndarray) -> RestData:
     return _rest_from_frames(local_frames(rest_triangles))
 
 
-def _rest_from_frames(frames) -> RestData:
+def _rest_from_frames(frames: LocalFrames) -> RestData:
     c = frames.shape
     inv = np.zeros_like(c)
     reg = frames.regular
@@ -99,7 +103,8 @@ def _size_factor(current_area2: np.ndarray, rest: RestData, face: np.ndarray) ->
     return np.where(reg, np.sqrt(current_area2[face] / safe), 1.0)
 
 
-def face_matrices(rest: RestData, cur, tri: np.ndarray, deformation: str):
+def face_matrices(rest: RestData, cur: LocalFrames, tri: np.ndarray, deformation: str
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per face: size factor k (F,), scaled normal m = k n_c (F, 3) and the matrix A (F, 3, 3)
     with Σ = A R_l S_l² R_lᵀ Aᵀ (spec §Remap: the local profile).
 
@@ -210,14 +215,6 @@ def remap(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
     return _remap_local(anchors, rest, tri)
 
 
-def remap_primitive_splats(splats: SplatCloud, anchoring: Anchoring,
-                           vertices: np.ndarray | None = None) -> SplatCloud:
-    """A new SplatCloud posed on ``vertices``; opacity and SH pass through unchanged."""
-    r = remap(anchoring, vertices)
-    return SplatCloud(r.means, r.rotations, r.scales, splats.opacities, splats.sh,
-                      splats.color_space, dict(splats.extra))
-
-
 # ----------------------------------------------------------------------------------------
 # Means and covariances only
 # ----------------------------------------------------------------------------------------
@@ -306,8 +303,7 @@ def iter_moments(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
         raise ValueError(f"expected vertices of shape {mesh.vertices.shape}, got {current.shape}")
     tri = mesh.triangles(current)
     anchors = anchoring.anchors
-    games = isinstance(anchors, GamesAnchors)
-    if games:
+    if isinstance(anchors, GamesAnchors):
         table = _face_table_games(tri)
     elif rest is None and vertices is None:  # at rest: the current frames are the rest frames
         frames = local_frames(tri)
@@ -323,7 +319,7 @@ def iter_moments(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
         t = np.take(table, face[sl], axis=1)
         bary = anchors.barycentrics[sl].astype(np.float64)
         b1, b2 = bary[:, 0], bary[:, 1]
-        if games:
+        if isinstance(anchors, GamesAnchors):
             mean = tuple(t[j] + b1 * t[3 + j] + b2 * t[6 + j] for j in range(3))
             rho = anchors.rho[sl].astype(np.float64)
             sc = [np.maximum(rho * t[18 + j], 0.0) + GAMES_EPS for j in range(3)]
@@ -359,7 +355,8 @@ def remap_moments(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
     return means, cov
 
 
-def covariance_entries(rotations: np.ndarray, scales: np.ndarray) -> tuple:
+def covariance_entries(rotations: np.ndarray, scales: np.ndarray
+                       ) -> tuple[np.ndarray, ...]:
     """(Σ00, Σ01, Σ02, Σ11, Σ12, Σ22), float64, of Σ = R diag(s)² Rᵀ for quaternions
     (n, 4) x, y, z, w (normalized first; zero gives the identity) and linear scales (n, 3)."""
     r = _quaternion_columns(rotations)

@@ -1,0 +1,319 @@
+"""Writing splat assets as glTF 2.0 (``.gltf``) and GLB (``.glb``).
+
+The rest pose of every splat primitive is plain ``KHR_gaussian_splatting``; the anchoring of
+anchored primitives is the ``GSVERSE_gaussian_splatting_mesh_anchor`` extension nested in the
+``KHR_gaussian_splatting`` extension object (``spec/README.md``).
+
+Layout written (one glTF mesh per splat primitive, then one per anchor mesh):
+
+* splat mesh: one ``POINTS`` primitive with ``POSITION`` (FLOAT VEC3, min/max),
+  ``KHR_gaussian_splatting:ROTATION`` (FLOAT VEC4, unit quaternion x, y, z, w),
+  ``:SCALE`` (FLOAT VEC3, linear), ``:OPACITY`` (FLOAT SCALAR, linear [0, 1]),
+  ``:SH_DEGREE_l_COEF_n`` (FLOAT VEC3, model coefficient ``k = l² + n``) and a ``COLOR_0``
+  fallback (UNSIGNED_BYTE normalized VEC4, linear RGB + opacity); instantiated by one node;
+* anchor mesh: one ``TRIANGLES`` primitive (FLOAT ``POSITION`` + indices), instantiated by no
+  node; several anchored primitives share it when they share the :class:`TriangleMesh` object;
+* anchor accessors: referenced only from the extension JSON; their buffer views have no target.
+
+All data live in one buffer: the GLB ``BIN`` chunk, or a base64 ``data:`` URI for ``.gltf``.
+:class:`BufferBuilder` (one buffer, one aligned buffer view per accessor, plain JSON objects)
+is also what the conformance suite builds its hand-made assets with.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import math
+import os
+from dataclasses import dataclass
+from typing import Any, Iterable
+
+import numpy as np
+import pygltflib
+
+from ...version import __version__
+from ...atomic import atomic_write
+from ...errors import GsverseError, UsageError
+from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
+                      TriangleMesh, check_primitive)
+from ...quaternion import unit_quaternions
+from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, SH_C0, SHORT, UNSIGNED_BYTE, UNSIGNED_INT,
+                           UNSIGNED_SHORT)
+from .accessors import COMPONENT_DTYPES
+from .container import glb_bytes
+from .reader import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
+
+__all__ = ["ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER", "QUANTIZE_OPTIONS", "BufferBuilder",
+           "asset_to_gltf", "gltf_to_bytes", "write_gltf"]
+
+#: bufferView targets.
+ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
+
+#: Component-type choices for ``quantize=``: property -> {option: (componentType, scale)}.
+QUANTIZE_OPTIONS: dict[str, dict[str, tuple[int, float] | None]] = {
+    "barycentrics": {"float": None, "unsigned_short": (UNSIGNED_SHORT, 65535.0),
+                     "unsigned_byte": (UNSIGNED_BYTE, 255.0)},
+    "localRotation": {"float": None, "short": (SHORT, 32767.0), "byte": (BYTE, 127.0)},
+}
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _fallback_color(cloud: SplatCloud) -> np.ndarray:
+    """``COLOR_0`` fallback, (N, 4) uint8: linear RGB of the SH DC term and opacity as alpha."""
+    rgb = np.clip(0.5 + SH_C0 * cloud.sh[:, 0, :].astype(np.float64), 0.0, 1.0)
+    if cloud.color_space == "srgb_rec709_display":
+        rgb = _srgb_to_linear(rgb)
+    alpha = np.clip(cloud.opacities.astype(np.float64), 0.0, 1.0)[:, None]
+    return np.round(np.concatenate([rgb, alpha], axis=1) * 255.0).astype(np.uint8)
+
+
+class BufferBuilder:
+    """One binary buffer with one 4-byte-aligned bufferView per accessor.
+
+    ``views`` and ``accessors`` are plain glTF JSON objects; ``blob`` is the buffer so far
+    (:meth:`finish` pads it and returns it).
+    """
+
+    def __init__(self) -> None:
+        self.blob = bytearray()
+        self.views: list[dict[str, Any]] = []
+        self.accessors: list[dict[str, Any]] = []
+
+    def add(self, array: Any, ctype: int, gtype: str, *, normalized: bool = False,
+            target: int | None = None, minmax: bool = False) -> int:
+        """Append ``array`` (first axis: elements) as an accessor of component type
+        ``ctype`` and type ``gtype`` in a new buffer view; returns the accessor's index.
+        ``minmax`` records the accessor's ``min``/``max`` (required for ``POSITION``)."""
+        data = np.ascontiguousarray(np.asarray(array), dtype=COMPONENT_DTYPES[ctype])
+        count = int(data.shape[0])
+        self.blob += b"\0" * (-len(self.blob) % 4)
+        view: dict[str, Any] = {"buffer": 0, "byteOffset": len(self.blob),
+                                "byteLength": int(data.nbytes)}
+        if target is not None:
+            view["target"] = target
+        self.blob += data.tobytes()
+        self.views.append(view)
+        acc: dict[str, Any] = {"bufferView": len(self.views) - 1, "componentType": ctype,
+                               "count": count, "type": gtype}
+        if normalized:
+            acc["normalized"] = True
+        if minmax:
+            flat = data.reshape(count, -1).astype(np.float64)
+            acc["min"] = [float(v) for v in flat.min(axis=0)]
+            acc["max"] = [float(v) for v in flat.max(axis=0)]
+        self.accessors.append(acc)
+        return len(self.accessors) - 1
+
+    def finish(self) -> bytes:
+        """The buffer, padded to a multiple of 4 bytes."""
+        self.blob += b"\0" * (-len(self.blob) % 4)
+        return bytes(self.blob)
+
+
+def _check_quantize(quantize: dict | None) -> dict[str, tuple[int, float] | None]:
+    chosen: dict[str, tuple[int, float] | None] = {}
+    for key, value in (quantize or {}).items():
+        if key not in QUANTIZE_OPTIONS:
+            raise UsageError(f"cannot quantize {key!r}; choose from {', '.join(QUANTIZE_OPTIONS)}")
+        if value not in QUANTIZE_OPTIONS[key]:
+            raise UsageError(f"quantize[{key!r}] must be one of "
+                             f"{', '.join(QUANTIZE_OPTIONS[key])}, got {value!r}")
+        chosen[key] = QUANTIZE_OPTIONS[key][value]
+    return chosen
+
+
+@dataclass
+class _EncodedAnchors:
+    """Anchor data as the writer stores them: normalized-integer codes for the quantized
+    properties (None: stored as FLOAT), and ``anchors`` as a reader dequantizes them."""
+
+    anchors: LocalAnchors | GamesAnchors
+    barycentrics: tuple[np.ndarray, int] | None = None
+    local_rotation: tuple[np.ndarray, int] | None = None
+
+
+def _encode_anchors(anchors: LocalAnchors | GamesAnchors,
+                    quant: dict[str, tuple[int, float] | None]) -> _EncodedAnchors:
+    """Quantize the anchors as ``quant`` asks; dequantize the codes as glTF 2.0 §3.11 says
+    (``c / 255``, ``max(c / 127, -1)``, ...; quaternions renormalized, as readers do)."""
+    out = _EncodedAnchors(anchors)
+    bary = anchors.barycentrics
+    q = quant.get("barycentrics")
+    if q is not None and bool(np.all((bary >= 0.0) & (bary <= 1.0))):
+        ctype, top = q
+        codes = np.round(bary.astype(np.float64) * top)
+        out.barycentrics = (codes, ctype)
+        bary = (codes.astype(np.float32) / np.float32(top)).astype(np.float32)
+    if isinstance(anchors, LocalAnchors):
+        rot = unit_quaternions(anchors.local_rotation)
+        q = quant.get("localRotation")
+        if q is not None:
+            ctype, top = q
+            codes = np.clip(np.round(rot.astype(np.float64) * top), -top, top)
+            out.local_rotation = (codes, ctype)
+            rot = unit_quaternions(np.maximum(codes / top, -1.0).astype(np.float32))
+        out.anchors = LocalAnchors(anchors.face_index, bary, anchors.normal_offset, rot,
+                                   anchors.local_scale, anchors.deformation)
+    else:
+        out.anchors = GamesAnchors(anchors.face_index, bary, anchors.rho)
+    return out
+
+
+def _rest_pose_of(c: SplatCloud, mesh: TriangleMesh, encoded: _EncodedAnchors) -> SplatCloud:
+    """The splats with the rest pose remapped from the anchors as stored (spec §Rest-pose
+    consistency), for quantized anchors; otherwise the splats unchanged."""
+    if encoded.barycentrics is None and encoded.local_rotation is None:
+        return c
+    from ...remap_reference import remap
+
+    rest = remap(Anchoring(mesh, encoded.anchors))
+    return SplatCloud(rest.means.astype(np.float32), rest.rotations.astype(np.float32),
+                      rest.scales.astype(np.float32), c.opacities, c.sh, c.color_space,
+                      dict(c.extra))
+
+
+def _write_anchors(b: BufferBuilder, faces: int, encoded: _EncodedAnchors,
+                   splats: SplatCloud, mesh_index: int, scale_accessor: int) -> dict[str, Any]:
+    anchors = encoded.anchors
+    ftype = UNSIGNED_BYTE if faces <= 256 else UNSIGNED_SHORT if faces <= 65536 else UNSIGNED_INT
+    obj: dict[str, Any] = {"mesh": mesh_index, "primitive": 0, "profile": anchors.profile}
+    if isinstance(anchors, LocalAnchors):
+        obj["deformation"] = anchors.deformation
+    obj["faceIndex"] = b.add(anchors.face_index, ftype, "SCALAR")
+    if encoded.barycentrics is not None:
+        codes, ctype = encoded.barycentrics
+        obj["barycentrics"] = b.add(codes, ctype, "VEC2", normalized=True)
+    else:
+        obj["barycentrics"] = b.add(anchors.barycentrics, FLOAT, "VEC2")
+    if isinstance(anchors, LocalAnchors):
+        obj["normalOffset"] = b.add(anchors.normal_offset, FLOAT, "SCALAR")
+        if encoded.local_rotation is not None:
+            codes, ctype = encoded.local_rotation
+            obj["localRotation"] = b.add(codes, ctype, "VEC4", normalized=True)
+        else:
+            obj["localRotation"] = b.add(anchors.local_rotation, FLOAT, "VEC4")
+        if np.array_equal(anchors.local_scale, splats.scales):
+            obj["localScale"] = scale_accessor
+        else:
+            obj["localScale"] = b.add(anchors.local_scale, FLOAT, "VEC3")
+    else:
+        obj["rho"] = b.add(anchors.rho, FLOAT, "SCALAR")
+    return obj
+
+
+def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltflib.GLTF2:
+    """The glTF document for ``asset``; its binary buffer is set as the binary blob.
+
+    ``quantize`` optionally stores anchor accessors as normalized integers:
+    ``{"barycentrics": "unsigned_short" | "unsigned_byte",
+    "localRotation": "short" | "byte"}``. Barycentrics stay FLOAT for a primitive whose
+    barycentrics are not all in [0, 1]. Quantizing moves the anchored splats: the stored rest
+    pose is then the remap of the anchors as stored (dequantized), so that the asset stays
+    self-consistent (spec §Rest-pose consistency); the move is at most about half a
+    quantization step of each property (for 8-bit barycentrics, 1/510 of a triangle edge).
+    Raises :class:`UsageError` for data glTF cannot hold.
+    """
+    quant = _check_quantize(quantize)
+    prims = list(asset.primitives)
+    for i, prim in enumerate(prims):
+        check_primitive(i, prim)
+
+    # Anchor meshes are appended after the splat meshes, one per distinct TriangleMesh object.
+    anchor_mesh_index: dict[int, int] = {}
+    anchor_meshes: list[TriangleMesh] = []
+    for prim in prims:
+        if prim.anchoring is not None and id(prim.anchoring.mesh) not in anchor_mesh_index:
+            anchor_mesh_index[id(prim.anchoring.mesh)] = len(prims) + len(anchor_meshes)
+            anchor_meshes.append(prim.anchoring.mesh)
+
+    b = BufferBuilder()
+    meshes: list[pygltflib.Mesh | None] = [None] * (len(prims) + len(anchor_meshes))
+    nodes: list[pygltflib.Node] = []
+    for i, prim in enumerate(prims):
+        encoded: _EncodedAnchors | None = None
+        c = prim.splats
+        anchoring = prim.anchoring
+        if anchoring is not None:
+            encoded = _encode_anchors(anchoring.anchors, quant)
+            c = _rest_pose_of(c, anchoring.mesh, encoded)
+        attrs: dict[str, int] = {"POSITION": b.add(c.means, FLOAT, "VEC3", target=ARRAY_BUFFER,
+                                                   minmax=True)}
+        attrs[ROTATION] = b.add(unit_quaternions(c.rotations), FLOAT, "VEC4", target=ARRAY_BUFFER)
+        attrs[SCALE] = b.add(c.scales, FLOAT, "VEC3", target=ARRAY_BUFFER)
+        attrs[OPACITY] = b.add(c.opacities, FLOAT, "SCALAR", target=ARRAY_BUFFER)
+        for k in range(c.sh.shape[1]):
+            degree = math.isqrt(k)
+            attrs[sh_attribute(degree, k - degree * degree)] = b.add(
+                c.sh[:, k, :], FLOAT, "VEC3", target=ARRAY_BUFFER)
+        attrs["COLOR_0"] = b.add(_fallback_color(c), UNSIGNED_BYTE, "VEC4", normalized=True,
+                                 target=ARRAY_BUFFER)
+        khr: dict[str, Any] = {"kernel": "ellipse", "colorSpace": c.color_space,
+                               "projection": "perspective", "sortingMethod": "cameraDistance"}
+        if anchoring is not None and encoded is not None:
+            mesh = anchoring.mesh
+            m = anchor_mesh_index[id(mesh)]
+            if meshes[m] is None:
+                pos = b.add(mesh.vertices, FLOAT, "VEC3", target=ARRAY_BUFFER, minmax=True)
+                itype = UNSIGNED_SHORT if len(mesh.vertices) < 65535 else UNSIGNED_INT
+                idx = b.add(mesh.faces.reshape(-1), itype, "SCALAR", target=ELEMENT_ARRAY_BUFFER)
+                meshes[m] = pygltflib.Mesh(primitives=[pygltflib.Primitive(
+                    attributes=pygltflib.Attributes(POSITION=pos), indices=idx,
+                    mode=TRIANGLES)], weights=None,
+                    name=f"{prim.name} anchor mesh" if prim.name else "anchor mesh")
+            khr["extensions"] = {EXTENSION: _write_anchors(b, mesh.face_count, encoded, c, m,
+                                                           attrs[SCALE])}
+        primitive = pygltflib.Primitive(attributes=pygltflib.Attributes(**attrs),
+                                        mode=POINTS, extensions={KHR: khr})
+        meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
+        nodes.append(pygltflib.Node(mesh=i, name=prim.name, children=None))
+
+    used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else [])
+    blob = b.finish()
+    gltf = pygltflib.GLTF2(
+        asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}"),
+        extensionsUsed=used, scene=0, scenes=[pygltflib.Scene(nodes=list(range(len(nodes))))],
+        nodes=nodes, meshes=meshes,
+        accessors=[pygltflib.Accessor(**{"byteOffset": 0, "normalized": None, "min": None,
+                                          "max": None, **acc}) for acc in b.accessors],
+        bufferViews=[pygltflib.BufferView(**view) for view in b.views],
+        buffers=[pygltflib.Buffer(byteLength=len(blob))] if blob else [])
+    gltf.set_binary_blob(blob)
+    return gltf
+
+
+def _gltf_json(gltf: pygltflib.GLTF2, *, data_uri: bool) -> bytes:
+    doc = json.loads(gltf.to_json())
+    if data_uri and doc.get("buffers"):
+        payload = base64.b64encode(gltf.binary_blob() or b"").decode("ascii")
+        doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + payload
+    return json.dumps(doc, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def gltf_to_bytes(gltf: pygltflib.GLTF2, *, binary: bool = True) -> bytes:
+    """Serialize a document from :func:`asset_to_gltf`: GLB bytes, or ``.gltf`` JSON bytes
+    with the buffer embedded as a base64 ``data:`` URI."""
+    if not binary:
+        return _gltf_json(gltf, data_uri=True)
+    return glb_bytes(_gltf_json(gltf, data_uri=False), gltf.binary_blob() or None)
+
+
+def write_gltf(asset: SplatAsset, path: str | os.PathLike, *,
+               protect: Iterable[str | os.PathLike] = (), quantize: dict | None = None) -> None:
+    """Write ``asset`` to ``path``: ``.glb`` (binary) or ``.gltf`` (JSON, embedded buffer).
+
+    The output is written atomically; ``protect`` lists input files it must not overwrite.
+    See :func:`asset_to_gltf` for ``quantize``.
+    """
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext not in (".glb", ".gltf"):
+        raise UsageError(f"glTF output must end in .glb or .gltf, not {ext or '(nothing)'}", path)
+    try:
+        data = gltf_to_bytes(asset_to_gltf(asset, quantize=quantize), binary=ext == ".glb")
+    except GsverseError as err:
+        raise err.with_path(path) from None
+    with atomic_write(path, "wb", protect=tuple(protect)) as handle:
+        handle.write(data)
+

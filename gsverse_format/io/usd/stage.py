@@ -1,0 +1,97 @@
+"""Opening a USD file as a stage, safely: the file must be a USD file, and no composition arc
+(sublayer, reference, payload) may lead outside its folder."""
+from __future__ import annotations
+
+import os
+import re
+import types
+from typing import Any
+
+from ...errors import FormatError
+from .schema import USD_SUFFIXES, pxr_errors, pxr_message
+
+__all__ = ["MAX_LAYERS", "OutsideFolder", "check_path", "open_stage"]
+
+
+def check_path(path: str) -> None:
+    """Raise :class:`FormatError` unless ``path`` is an existing file with a USD suffix."""
+    if os.path.isdir(path):
+        raise FormatError("is a folder, not a USD file", path)
+    if not os.path.isfile(path):
+        raise FormatError("file not found", path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in USD_SUFFIXES:
+        raise FormatError(f"not a USD file name (use one of {', '.join(USD_SUFFIXES)})", path)
+
+
+#: At most this many layers are followed when checking a file's composition arcs.
+MAX_LAYERS = 4096
+
+
+class OutsideFolder(FormatError):
+    """A composition arc of the file leads outside the file's folder."""
+
+
+def _inside(resolved: str, folder: str) -> bool:
+    outer = resolved.split("[", 1)[0]  # "pkg.usdz[inner.usdc]": the package is what counts
+    real = os.path.realpath(outer)
+    return real == folder or real.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _check_composition(px: types.SimpleNamespace, path: str) -> None:
+    """Refuse files whose sublayers, references or payloads leave the file's folder.
+
+    Like the glTF reader's URI rules: an asset path with a scheme (``http:``, ...), an
+    absolute path, or a relative path that resolves (symbolic links followed) outside the
+    folder of ``path`` is refused before USD composes anything, so that opening a file never
+    reads files elsewhere. Layers inside a ``.usdz`` package are inside by definition.
+    Dependencies are followed recursively (``MAX_LAYERS`` at most); a dependency that does
+    not exist or does not open is left to USD (which reports it as a warning).
+    """
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
+    root = px.Sdf.Layer.FindOrOpen(path)
+    if root is None:
+        return  # not a layer at all: Usd.Stage.Open says why
+    todo, seen = [root], {root.identifier}
+    while todo:
+        layer = todo.pop()
+        for dep in layer.GetCompositionAssetDependencies():
+            scheme = re.match(r"^([A-Za-z][A-Za-z0-9+.-]*):", dep)
+            if scheme and len(scheme.group(1)) > 1:
+                raise OutsideFolder(f"composition arc to {dep!r} in {layer.GetDisplayName()}: "
+                                    f"URI schemes are not followed", path)
+            if os.path.isabs(dep) or dep.startswith(("\\", "//")) or scheme:
+                raise OutsideFolder(f"composition arc to the absolute path {dep!r} in "
+                                    f"{layer.GetDisplayName()}: only paths inside the "
+                                    f"asset's folder are followed", path)
+            resolved = layer.ComputeAbsolutePath(dep)
+            if not _inside(resolved, folder):
+                raise OutsideFolder(f"composition arc to {dep!r} in {layer.GetDisplayName()} "
+                                    f"leaves the asset's folder", path)
+            if resolved in seen:
+                continue
+            seen.add(resolved)
+            if len(seen) > MAX_LAYERS:
+                raise FormatError(f"more than {MAX_LAYERS} layers in the composition", path)
+            try:
+                child = px.Sdf.Layer.FindOrOpen(resolved)
+            except pxr_errors():
+                child = None
+            if child is not None:
+                todo.append(child)
+
+
+def open_stage(px: types.SimpleNamespace, path: str) -> Any:
+    """Open ``path`` as a USD stage; every failure is a one-line FormatError."""
+    check_path(path)
+    try:
+        existing = px.Sdf.Layer.Find(path)
+        if existing is not None and not existing.dirty:
+            existing.Reload(True)  # the file may have been replaced since it was opened
+        _check_composition(px, path)
+        stage = px.Usd.Stage.Open(path, px.Usd.Stage.LoadAll)
+    except pxr_errors() as err:
+        raise FormatError(f"not a readable USD file: {pxr_message(err)}", path) from None
+    if stage is None:
+        raise FormatError("not a readable USD file", path)
+    return stage
