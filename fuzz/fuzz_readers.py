@@ -296,8 +296,13 @@ def _targets() -> dict[str, list[tuple[str, Callable[[str], object]]]]:
             raise AssertionError(f"validator INTERNAL_ERROR: {internal[0].message}")
         return report
 
+    def read_usd(path: str):
+        from gsverse_format.io.usd import read_usd as read
+
+        return read(path, isolate=True)   # the USD library itself may crash: a child process
+
     gltf = [("read_gltf", read_gltf), ("read_mesh", read_mesh), ("validate", validate)]
-    return {".glb": gltf, ".gltf": gltf,
+    return {".glb": gltf, ".gltf": gltf, ".usda": [("read_usd", read_usd), ("validate", validate)],
             ".ply": [("read_splat_ply", read_splat_ply), ("read_ply_elements", read_ply_elements),
                      ("read_ply_mesh", read_ply_mesh), ("read_mesh", read_mesh)]}
 

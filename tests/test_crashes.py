@@ -157,3 +157,22 @@ def test_usd_reader_lets_a_bug_propagate(tmp_path, monkeypatch):
     monkeypatch.setattr(SplatCloud, "__post_init__", _boom)
     with pytest.raises(Injected):
         read_usd(path)
+
+
+def test_fuzz_harness_counts_a_usd_bug_as_a_crash(tmp_path, monkeypatch):
+    """An unexpected exception in the USD reader (in its child process) is a crash for the
+    fuzz harness and an INTERNAL_ERROR for the validator, never a rejected input."""
+    pytest.importorskip("pxr")
+    from gsverse_format.io.usd import isolation, write_usd
+    from usd_validation_assets import BROKEN_READER, local_asset
+
+    good = tmp_path / "good.usda"
+    write_usd(local_asset(), good)
+    monkeypatch.setattr(isolation, "CHILD_CODE", BROKEN_READER + isolation.CHILD_CODE)
+    fuzzer = fz.Fuzzer(str(tmp_path / "work"))
+    (tmp_path / "work").mkdir()
+    fuzzer.run_one(".usda", good.read_bytes())
+    crashes = _crash_targets(fuzzer)
+    assert set(crashes) == {"read_usd", "validate"}, fuzzer.outcomes
+    assert "KeyError" in crashes["read_usd"] and "INTERNAL_ERROR" in crashes["validate"]
+    assert "rejected" not in fuzzer.outcomes["read_usd"]
