@@ -40,7 +40,7 @@ import numpy as np
 
 from . import quaternion as quat
 from .frames import GAMES_EPS, LocalFrames, games_frames, local_frames
-from .model import Anchoring, GamesAnchors, LocalAnchors
+from .model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
 
 __all__ = ["RemapResult", "remap", "RestData", "prepare_rest",
            "remap_moments", "iter_moments", "covariance_entries", "face_matrices",
@@ -195,6 +195,14 @@ def _remap_games(anchors: GamesAnchors, tri: np.ndarray) -> RemapResult:
     return RemapResult(means, quat.from_matrix(rot), scales, cov)
 
 
+def _current_triangles(mesh: TriangleMesh, vertices: np.ndarray | None) -> np.ndarray:
+    """(F, 3, 3) corners of ``mesh`` posed at ``vertices`` (default: its rest vertices)."""
+    current = mesh.vertices if vertices is None else np.asarray(vertices)
+    if current.shape != mesh.vertices.shape:
+        raise ValueError(f"expected vertices of shape {mesh.vertices.shape}, got {current.shape}")
+    return mesh.triangles(current)
+
+
 def remap(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
           rest: RestData | None = None) -> RemapResult:
     """Remap the splats of ``anchoring`` onto the mesh with current ``vertices`` (V, 3).
@@ -203,10 +211,7 @@ def remap(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
     ``rest`` may pass precomputed :func:`prepare_rest` data to skip recomputing it per frame.
     """
     mesh = anchoring.mesh
-    current = mesh.vertices if vertices is None else np.asarray(vertices)
-    if current.shape != mesh.vertices.shape:
-        raise ValueError(f"expected vertices of shape {mesh.vertices.shape}, got {current.shape}")
-    tri = mesh.triangles(current)
+    tri = _current_triangles(mesh, vertices)
     anchors = anchoring.anchors
     if isinstance(anchors, GamesAnchors):
         return _remap_games(anchors, tri)
@@ -298,10 +303,7 @@ def iter_moments(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
     only compares or reduces them never materializes (N, 3, 3) arrays.
     """
     mesh = anchoring.mesh
-    current = mesh.vertices if vertices is None else np.asarray(vertices)
-    if current.shape != mesh.vertices.shape:
-        raise ValueError(f"expected vertices of shape {mesh.vertices.shape}, got {current.shape}")
-    tri = mesh.triangles(current)
+    tri = _current_triangles(mesh, vertices)
     anchors = anchoring.anchors
     if isinstance(anchors, GamesAnchors):
         table = _face_table_games(tri)

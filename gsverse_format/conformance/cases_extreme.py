@@ -208,8 +208,7 @@ def _stretch100_case(profile: str, law: str | None) -> RemapCase:
     face = faces_from_counts(rng.integers(0, 3, mesh.face_count))
     anchors = make_anchors(profile, law, mesh, face, random_barycentrics(rng, len(face)), rng)
     return make_case(cid, f"{profile} profile{f', {law} law' if law else ''}: the tube stretched "
-                     f"100x along one "
-                     f"direction.", law_tags(profile, law) + ["extreme:stretch-100x"],
+                     f"100x along one direction.", law_tags(profile, law) + ["extreme:stretch-100x"],
                      mesh, anchors, poses, rng, 1)
 
 

@@ -174,8 +174,7 @@ def _condition_terms(anchoring: Anchoring, poses: list[np.ndarray],
         lever = max(lever, float(np.max(np.abs(b[:, 0]) * e1 + np.abs(b[:, 1]) * e2 + d * k)))
         y = max(y, float(np.max(d * k)))
         if local is not None and rest is not None and local.deformation == "affine":
-            _, _, a = face_matrices(rest, fr, tri, "affine")
-            sv = np.linalg.svd(a[used], compute_uv=False)
+            sv = np.linalg.svd(a_law[used], compute_uv=False)
             top = sv[:, 0]
             low = np.where(sv[:, 2] > 1e-12 * top, sv[:, 2],
                            np.where(sv[:, 1] > 1e-12 * top, sv[:, 1], top))
@@ -343,9 +342,10 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     if case.skinned_asset is not None:
         _write(case_dir / "skinned.glb", case.skinned_asset)
         files["skinned_asset"] = "skinned.glb"
-    terms = _condition_terms(anchoring, pose_arrays, means_list)
     per_pose = [_condition_terms(anchoring, [verts], [means_list[0], means])
                 for verts, means in zip(pose_arrays, means_list[1:])]
+    # every term is a maximum over splats and poses: the case's terms are the poses' largest
+    terms = {key: max(t[key] for t in per_pose) for key in per_pose[0]}
     extra = {}
     if case.validator_codes:
         extra = {"validator_codes": case.validator_codes, "note": case.note}

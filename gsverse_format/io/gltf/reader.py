@@ -12,7 +12,8 @@ from __future__ import annotations
 import math
 import os
 import re
-from typing import Any
+from contextlib import contextmanager
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -323,14 +324,24 @@ def read_gltf(path: str | os.PathLike, *, max_bytes: int = DEFAULT_MAX_BYTES) ->
     bug of the reader and propagates as it is.
     """
     spath = os.fspath(path)
+    with input_errors(spath):
+        asset = read_document(open_document(spath, max_bytes))
+    return asset
+
+
+@contextmanager
+def input_errors(path: str, what: str = "asset") -> Iterator[None]:
+    """What reading ``path`` raises for bad input, as one :class:`FormatError` naming it (our
+    own errors keep their issue code; unreadable files and running out of memory get a
+    cause). Anything else is a bug of the reader and propagates as it is."""
     try:
-        return read_document(open_document(spath, max_bytes))
+        yield
     except GsverseError as err:
-        raise as_format_error(err, spath) from None
+        raise as_format_error(err, path) from None
     except OSError as err:
-        raise FormatError(f"cannot read: {err.strerror or err}", spath) from None
+        raise FormatError(f"cannot read: {err.strerror or err}", path) from None
     except MemoryError:
-        raise FormatError("not enough memory to read the asset", spath) from None
+        raise FormatError(f"not enough memory to read the {what}", path) from None
 
 
 def as_format_error(err: GsverseError, path: str) -> FormatError:

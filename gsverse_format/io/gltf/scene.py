@@ -8,11 +8,11 @@ import numpy as np
 
 from ... import quaternion as quat
 from ...codes import Code
-from ...errors import FormatError, GsverseError
+from ...errors import FormatError
 from ...model import TriangleMesh
 from .container import DEFAULT_MAX_BYTES, as_index, gltf_error, is_int
 from .document import Document, open_document
-from .reader import TRIANGLES, SplatReader, as_format_error
+from .reader import TRIANGLES, SplatReader, input_errors
 
 __all__ = ["mesh_instances", "read_gltf_triangles"]
 
@@ -118,11 +118,6 @@ def read_gltf_triangles(path: str | os.PathLike, *,
     :func:`~.reader.read_gltf`.
     """
     spath = os.fspath(path)
-    try:
-        return scene_triangles(open_document(spath, max_bytes))
-    except GsverseError as err:
-        raise as_format_error(err, spath) from None
-    except OSError as err:
-        raise FormatError(f"cannot read: {err.strerror or err}", spath) from None
-    except MemoryError:
-        raise FormatError("not enough memory to read the mesh", spath) from None
+    with input_errors(spath, "mesh"):
+        mesh = scene_triangles(open_document(spath, max_bytes))
+    return mesh

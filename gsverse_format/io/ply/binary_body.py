@@ -73,17 +73,23 @@ def _list_element(buf: bytes, element: PlyElement, order: str,
     def truncated() -> FormatError:
         return FormatError(f"file is truncated inside element {element.name!r}", path)
 
+    def list_length(count_type: str, at: int, where: str) -> tuple[int, int]:
+        """The length of the list whose count (of type ``count_type``) starts at byte ``at``,
+        and the size of that count in bytes."""
+        size = np.dtype(count_type).itemsize
+        if at + size > n:
+            raise truncated()
+        length = struct.unpack_from(order + STRUCT_CODES[count_type], buf, at)[0]
+        if length < 0:
+            raise FormatError(f"negative list length {length} in {where}", path)
+        return length, size
+
     # Guess that every row has the list lengths of the first row; verify them all.
     lengths: dict[str, int] = {}
     off = 0
     for p in props:
         if p.count_type is not None:
-            size = np.dtype(p.count_type).itemsize
-            if off + size > n:
-                raise truncated()
-            length = struct.unpack_from(order + STRUCT_CODES[p.count_type], buf, off)[0]
-            if length < 0:
-                raise FormatError(f"negative list length {length} in {element.name!r}.{p.name}", path)
+            length, size = list_length(p.count_type, off, f"{element.name!r}.{p.name}")
             lengths[p.name] = length
             off += size + length * np.dtype(p.type).itemsize
             if off > n:
@@ -112,13 +118,7 @@ def _list_element(buf: bytes, element: PlyElement, order: str,
     for row in range(count):
         for p in props:
             if p.count_type is not None:
-                size = np.dtype(p.count_type).itemsize
-                if off + size > n:
-                    raise truncated()
-                length = struct.unpack_from(order + STRUCT_CODES[p.count_type], buf, off)[0]
-                if length < 0:
-                    raise FormatError(f"negative list length {length} in row {row} of "
-                                      f"{element.name!r}", path)
+                length, size = list_length(p.count_type, off, f"row {row} of {element.name!r}")
                 off += size
                 nbytes = length * np.dtype(p.type).itemsize
                 if off + nbytes > n:

@@ -12,14 +12,13 @@ from typing import Any
 import numpy as np
 
 from ...codes import Code
-from ...errors import FormatError, GsverseError
 from ...model import SplatAsset
 from .problems import UsdInspection, UsdProblem
 from .reader import InvalidPrim, StageReader
 from .schema import (ANCHOR_API, API_ATTRIBUTE_TYPES, COLOR_SPACE_API, COLOR_SPACE_ATTR,
                      DEFAULT_COLOR_SPACE, FIELDS, MESH_REL, REST_ATTRS, SH_COEFFS, SH_DEGREE,
-                     SPLAT_TYPE, pxr, pxr_errors, pxr_message)
-from .stage import OutsideFolder, open_stage
+                     SPLAT_TYPE, pxr)
+from .stage import OutsideFolder, input_errors, open_stage
 
 __all__ = ["ConformanceReader", "usd_validation", "inspect_in_process"]
 
@@ -227,7 +226,7 @@ def inspect_in_process(spath: str, *, usd_validation_too: bool = True) -> UsdIns
     Raises :class:`FormatError` when the file cannot be opened as a USD stage at all,
     :class:`UsageError` without usd-core; any other exception is a bug here.
     """
-    try:
+    with input_errors(spath):
         px = pxr()
         try:
             stage = open_stage(px, spath)
@@ -246,11 +245,4 @@ def inspect_in_process(spath: str, *, usd_validation_too: bool = True) -> UsdIns
         problems = list(reader.problems)
         if usd_validation_too:
             problems += usd_validation(stage)
-    except GsverseError as err:
-        raise err.with_path(spath) from None
-    except MemoryError:
-        raise FormatError("not enough memory to read the asset", spath) from None
-    except pxr_errors() as err:
-        raise FormatError(f"malformed USD ({type(err).__name__}: {pxr_message(err)})",
-                          spath) from None
     return UsdInspection(problems, asset, list(reader.locations))

@@ -15,7 +15,7 @@ from typing import Any, NoReturn, cast
 import numpy as np
 
 from ...codes import Code
-from ...errors import FormatError, GsverseError
+from ...errors import FormatError
 from ...model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors, SplatAsset,
                       SplatCloud, SplatPrimitive, TriangleMesh, sh_coefficient_count)
 from ...quaternion import unit_quaternions
@@ -23,9 +23,8 @@ from ...vocabulary import DEFORMATIONS, PROFILES, USD_DEFORMATION, USD_PROFILE, 
 from .problems import UsdPrimInfo, UsdProblem
 from .schema import (ANCHOR_API, COLOR_SPACE_API, COLOR_SPACE_ATTR, DEFAULT_COLOR_SPACE,
                      FIELDS, MESH_REL, REST_ATTRS, SH_COEFFS, SH_DEGREE, SPLAT_TYPE, USD_TYPES,
-                     anchor_attribute_names, components, pxr, pxr_errors, pxr_message,
-                     usd_allowed_names, usd_required)
-from .stage import open_stage
+                     anchor_attribute_names, components, pxr, pxr_errors, usd_allowed_names, usd_required)
+from .stage import input_errors, open_stage
 
 __all__ = ["InvalidPrim", "StageReader", "read_in_process"]
 
@@ -515,7 +514,7 @@ def read_in_process(spath: str) -> tuple[SplatAsset, list[UsdProblem]]:
     """Read ``spath`` in this process: the asset and the problems (warnings only; the first
     error is raised as a :class:`FormatError`). Raises :class:`FormatError` for files USD
     cannot read, :class:`UsageError` without usd-core; any other exception is a bug here."""
-    try:
+    with input_errors(spath):
         px = pxr()
         stage = open_stage(px, spath)
         reader = StageReader(px, stage)
@@ -523,13 +522,6 @@ def read_in_process(spath: str) -> tuple[SplatAsset, list[UsdProblem]]:
             asset: SplatAsset | None = reader.read()
         except InvalidPrim:
             asset = None
-    except GsverseError as err:
-        raise err.with_path(spath) from None
-    except MemoryError:
-        raise FormatError("not enough memory to read the asset", spath) from None
-    except pxr_errors() as err:
-        raise FormatError(f"malformed USD ({type(err).__name__}: {pxr_message(err)})",
-                          spath) from None
     errors = [p for p in reader.problems if p.severity == "error"]
     if errors:
         first = errors[0]

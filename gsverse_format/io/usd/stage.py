@@ -5,9 +5,10 @@ from __future__ import annotations
 import os
 import re
 import types
-from typing import Any
+from contextlib import contextmanager
+from typing import Any, Iterator
 
-from ...errors import FormatError
+from ...errors import FormatError, GsverseError
 from .schema import USD_SUFFIXES, pxr_errors, pxr_message
 
 __all__ = ["MAX_LAYERS", "OutsideFolder", "check_path", "open_stage"]
@@ -95,3 +96,19 @@ def open_stage(px: types.SimpleNamespace, path: str) -> Any:
     if stage is None:
         raise FormatError("not a readable USD file", path)
     return stage
+
+
+@contextmanager
+def input_errors(spath: str) -> Iterator[None]:
+    """What reading ``spath`` raises for bad input, as one :class:`FormatError` naming it:
+    our own errors get the path, USD's own errors and running out of memory become
+    "malformed USD" / "not enough memory". Anything else is a bug and propagates."""
+    try:
+        yield
+    except GsverseError as err:
+        raise err.with_path(spath) from None
+    except MemoryError:
+        raise FormatError("not enough memory to read the asset", spath) from None
+    except pxr_errors() as err:
+        raise FormatError(f"malformed USD ({type(err).__name__}: {pxr_message(err)})",
+                          spath) from None
