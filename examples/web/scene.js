@@ -1,0 +1,243 @@
+// One loaded asset of the demo: its anchored splats (GPU remap, @gsverse/web/playcanvas), one
+// Jolt soft body per anchor mesh (physics.js), and the per-frame link between them.
+//
+// The soft bodies live in world space. Each frame their vertices are read back in anchor-vertex
+// order, taken to the splat's local space with the inverse of the splat entity's world matrix,
+// and handed to AnchoredSplat.setVertices; the remap pass moves the splats on the next frame.
+// Plain (unanchored) splats of the asset are never touched.
+
+import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
+import { SoftBodyMesh, bounds } from './physics.js';
+
+/**
+ * Column-major 4x4 times points (3N), into `out`.
+ * @param {ArrayLike<number>} m @param {ArrayLike<number>} p @param {Float32Array} out
+ */
+export function transformPoints(m, p, out) {
+    for (let i = 0; i < p.length; i += 3) {
+        const x = p[i], y = p[i + 1], z = p[i + 2];
+        out[i] = m[0] * x + m[4] * y + m[8] * z + m[12];
+        out[i + 1] = m[1] * x + m[5] * y + m[9] * z + m[13];
+        out[i + 2] = m[2] * x + m[6] * y + m[10] * z + m[14];
+    }
+    return out;
+}
+
+/**
+ * Inverse of an affine column-major 4x4 (binary64).
+ * @param {ArrayLike<number>} m
+ * @returns {Float64Array}
+ */
+export function invertAffine(m) {
+    const a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
+    const A = e * k - f * h, B = -(d * k - f * g), C = d * h - e * g;
+    const det = a * A + b * B + c * C;
+    if (!det) throw new Error('the splat node matrix is singular');
+    const r = 1 / det;
+    const inv = new Float64Array(16);
+    inv[0] = A * r; inv[4] = -(b * k - c * h) * r; inv[8] = (b * f - c * e) * r;
+    inv[1] = B * r; inv[5] = (a * k - c * g) * r; inv[9] = -(a * f - c * d) * r;
+    inv[2] = C * r; inv[6] = -(a * h - b * g) * r; inv[10] = (a * e - b * d) * r;
+    for (let i = 0; i < 3; i++) inv[12 + i] = -(inv[i] * m[12] + inv[4 + i] * m[13] + inv[8 + i] * m[14]);
+    inv[15] = 1;
+    return inv;
+}
+
+/**
+ * Unique edges of a triangle list.
+ * @param {Uint32Array} faces
+ * @returns {Uint32Array} pairs
+ */
+function uniqueEdges(faces) {
+    const seen = new Set();
+    const out = [];
+    for (let f = 0; f < faces.length; f += 3) {
+        for (let e = 0; e < 3; e++) {
+            const a = faces[f + e], b = faces[f + (e + 1) % 3];
+            const key = a < b ? a * 4294967296 + b : b * 4294967296 + a;
+            if (seen.has(key)) continue;
+            seen.add(key);
+            out.push(a, b);
+        }
+    }
+    return new Uint32Array(out);
+}
+
+/**
+ * @typedef {object} Body
+ * @property {import('@gsverse/web/playcanvas').AnchoredSplat} splat
+ * @property {SoftBodyMesh} soft
+ * @property {Float64Array} toWorld  splat node world matrix (column-major)
+ * @property {Float64Array} toLocal  its inverse
+ * @property {Float32Array} world    current anchor vertices, world space (3V)
+ * @property {Float32Array} local    current anchor vertices, splat-local space (3V)
+ * @property {Uint32Array} edges     welded edges for the wireframe
+ * @property {Float32Array} lines    wireframe line buffer
+ * @property {Float32Array} wire     welded positions scratch for the wireframe
+ */
+
+export class DemoAsset {
+    /**
+     * Load an asset (URL or bytes) and build one soft body per anchored primitive.
+     * Refused assets throw AnchorError before anything is added to the scene.
+     * @param {any} app PlayCanvas app
+     * @param {import('./physics.js').PhysicsWorld} world
+     * @param {string|Uint8Array} source
+     * @param {string} name
+     */
+    static async load(app, world, source, name) {
+        const loaded = await loadAnchoredAsset(app, source, { name });
+        try {
+            return new DemoAsset(app, world, loaded, name);
+        } catch (err) {
+            for (const s of loaded.anchored) s.destroy();
+            loaded.root.destroy();
+            if (loaded.asset) {
+                app.assets.remove(loaded.asset);
+                loaded.asset.unload();
+            }
+            throw err;
+        }
+    }
+
+    /**
+     * @param {any} app
+     * @param {import('./physics.js').PhysicsWorld} world
+     * @param {{root: any, anchored: any[], plain: any[], asset: any}} loaded
+     * @param {string} name
+     */
+    constructor(app, world, loaded, name) {
+        this.app = app;
+        this.world = world;
+        this.name = name;
+        this.root = loaded.root;
+        this.asset = loaded.asset;
+        this.plain = loaded.plain;
+        /** @type {Body[]} */
+        this.bodies = [];
+        // one simulation frame for the whole asset: about one unit large, centred
+        const all = [], before = { origin: world.origin, unit: world.unit };
+        for (const splat of loaded.anchored) {
+            const m = Float64Array.from(splat.entity.getWorldTransform().data);
+            all.push(...transformPoints(m, splat.prim.anchorMesh.vertices, new Float32Array(splat.prim.anchorMesh.vertices.length)));
+        }
+        if (all.length) {
+            const b = bounds(all);
+            world.setFrame(b.center, 1 / (Math.max(...b.size) || 1));
+        }
+        try {
+            this.build(world, loaded.anchored);
+        } catch (err) {
+            for (const b of this.bodies) b.soft.destroy();
+            this.bodies = [];
+            world.setFrame(before.origin, before.unit);     // the current asset's bodies live in it
+            throw err;
+        }
+    }
+
+    /**
+     * One soft body per anchored splat.
+     * @param {import('./physics.js').PhysicsWorld} world
+     * @param {any[]} anchored AnchoredSplat[]
+     * @private
+     */
+    build(world, anchored) {
+        for (const splat of anchored) {
+            const toWorld = Float64Array.from(splat.entity.getWorldTransform().data);
+            const mesh = splat.prim.anchorMesh;
+            const worldVerts = transformPoints(toWorld, mesh.vertices, new Float32Array(mesh.vertices.length));
+            const soft = new SoftBodyMesh(world, { vertices: worldVerts, indices: mesh.indices });
+            const edges = uniqueEdges(soft.faces);
+            this.bodies.push({
+                splat, soft, toWorld, toLocal: invertAffine(toWorld),
+                world: worldVerts, local: new Float32Array(mesh.vertices.length),
+                edges, lines: new Float32Array(edges.length * 3), wire: new Float32Array(3 * soft.count),
+            });
+        }
+    }
+
+    /** Number of splats: anchored (deformed) and plain (left alone). */
+    counts() {
+        let anchored = 0, plain = 0;
+        for (const b of this.bodies) anchored += b.splat.prim.count;
+        for (const e of this.plain) plain += e.gsplat?.resource?.numSplats ?? e.gsplat?.asset?.resource?.numSplats ?? 0;
+        return { anchored, plain };
+    }
+
+    /** World bounds of the anchor meshes at rest. */
+    restBounds() {
+        const all = [];
+        for (const b of this.bodies) all.push(...transformPoints(b.toWorld, b.splat.prim.anchorMesh.vertices, new Float32Array(b.world.length)));
+        return bounds(all);
+    }
+
+    /** Current world bounds of the anchor meshes. */
+    bounds() {
+        const all = [];
+        for (const b of this.bodies) all.push(...b.soft.positions());
+        return bounds(all);
+    }
+
+    /** Soft bodies -> splats: read vertices, to splat-local space, setVertices. */
+    sync() {
+        for (const b of this.bodies) {
+            b.soft.readAnchorVertices(b.world);
+            transformPoints(b.toLocal, b.world, b.local);
+            b.splat.setVertices(b.local);
+        }
+    }
+
+    /** Sum of the bodies' last setVertices CPU times, ms. */
+    remapCpuMs() {
+        let t = 0;
+        for (const b of this.bodies) t += b.splat.lastRemapMs || 0;
+        return t;
+    }
+
+    /**
+     * Advance the physics one fixed step.
+     * @param {number} dt
+     */
+    step(dt) {
+        for (const b of this.bodies) b.soft.prepare(dt);
+        this.world.step(dt);
+    }
+
+    /**
+     * Draw the anchor meshes as wireframes (immediate lines, current physics positions).
+     * @param {any} color pc.Color
+     */
+    drawWireframe(color) {
+        for (const b of this.bodies) {
+            const p = b.soft.positions(b.wire);
+            const e = b.edges, l = b.lines;
+            for (let i = 0; i < e.length; i++) {
+                const v = e[i];
+                l[3 * i] = p[3 * v]; l[3 * i + 1] = p[3 * v + 1]; l[3 * i + 2] = p[3 * v + 2];
+            }
+            this.app.drawLineArrays(/** @type {any} */ (l), color, false);
+        }
+    }
+
+    /** Back to the rest pose (physics and splats). */
+    reset() {
+        for (const b of this.bodies) {
+            b.soft.reset();
+            b.splat.reset();
+        }
+    }
+
+    /** Remove everything this asset added. */
+    destroy() {
+        for (const b of this.bodies) {
+            b.soft.destroy();
+            b.splat.destroy();
+        }
+        this.bodies = [];
+        this.root.destroy();
+        if (this.asset) {
+            this.app.assets.remove(this.asset);
+            this.asset.unload();
+        }
+    }
+}

@@ -1,0 +1,131 @@
+// Browser side of the GPU conformance run (conformance/run-browser.mjs drives it): a
+// PlayCanvas application on WebGL2; every case is imported with loadAnchoredAsset (engine
+// container loading + our reader), each pose is remapped on the GPU by the same remap chunk
+// as the render (RemapProbe: the engine's GSplatProcessor over the splat streams), and the
+// float32 results are read back from the GPU. Arrays go back to Node as base64.
+
+import * as pc from 'playcanvas';
+import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
+import { RemapProbe } from '../../src/playcanvas/probe.js';
+
+/** @type {pc.Application|null} */
+let app = null;
+
+/** @param {ArrayBufferView} view */
+function toBase64(view) {
+    const bytes = new Uint8Array(view.buffer, view.byteOffset, view.byteLength);
+    let s = '';
+    for (let i = 0; i < bytes.length; i += 0x8000) {
+        s += String.fromCharCode.apply(null, /** @type {any} */ (bytes.subarray(i, i + 0x8000)));
+    }
+    return btoa(s);
+}
+
+/** @param {string} url */
+async function fetchBytes(url) {
+    const response = await fetch(url);
+    if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
+    return new Uint8Array(await response.arrayBuffer());
+}
+
+/**
+ * Start the application on a WebGL2 or WebGPU device; returns the backend description.
+ * @param {{backend?: 'webgl2'|'webgpu'}} [options]
+ */
+async function init(options = {}) {
+    const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
+    const backend = options.backend || 'webgl2';
+    const graphicsDevice = await pc.createGraphicsDevice(canvas, { deviceTypes: [backend], antialias: false, alpha: false });
+    if (graphicsDevice.deviceType !== backend) throw new Error(`no ${backend} device (got ${graphicsDevice.deviceType})`);
+    app = new pc.Application(canvas, { graphicsDevice });
+    const device = /** @type {any} */ (app.graphicsDevice);
+    if (device.isWebGPU) {
+        const info = device.gpuAdapter?.info || {};
+        return {
+            engine: 'PlayCanvas',
+            engine_version: pc.version,
+            device: device.deviceType,
+            renderer: `WebGPU adapter: ${[info.vendor, info.architecture, info.device, info.description].filter(Boolean).join(' ') || 'unknown'}`,
+            vendor: info.vendor || '',
+            version: 'WebGPU',
+            shading_language: 'WGSL',
+            float_precision: 'f32',
+            user_agent: navigator.userAgent,
+        };
+    }
+    const gl = device.gl;
+    const info = gl.getExtension('WEBGL_debug_renderer_info');
+    return {
+        engine: 'PlayCanvas',
+        engine_version: pc.version,
+        device: device.deviceType,
+        renderer: info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER),
+        vendor: info ? gl.getParameter(info.UNMASKED_VENDOR_WEBGL) : gl.getParameter(gl.VENDOR),
+        version: gl.getParameter(gl.VERSION),
+        shading_language: gl.getParameter(gl.SHADING_LANGUAGE_VERSION),
+        float_precision: (() => {
+            const p = gl.getShaderPrecisionFormat(gl.FRAGMENT_SHADER, gl.HIGH_FLOAT);
+            return `highp float: precision ${p.precision} bits, range 2^${p.rangeMin}..2^${p.rangeMax}`;
+        })(),
+        user_agent: navigator.userAgent,
+    };
+}
+
+/**
+ * Import one case, remap every pose on the GPU, read back.
+ * @param {string} path  the case folder relative to the suite, e.g. cases/local-affine-stretch
+ * @param {{fault?: string|null}} options
+ */
+async function runCase(path, options) {
+    if (!app) throw new Error('init() first');
+    const base = `/suite/${path}/`;
+    const manifest = await (await fetch(`${base}case.json`)).json();
+    const bytes = await fetchBytes(base + manifest.files.asset);
+    const t0 = performance.now();
+    let loaded;
+    try {
+        loaded = await loadAnchoredAsset(app, bytes, { name: manifest.files.asset, parent: null, fault: options.fault ?? null });
+    } catch (err) {
+        const e = /** @type {any} */ (err);
+        if (e && e.name === 'AnchorError') return { refused: `${e.code}: ${e.message}`, code: e.code };
+        throw err;
+    }
+    const { root, anchored, asset } = loaded;
+    /** @type {any} */
+    const out = {};
+    let probe = null;
+    try {
+        if (anchored.length !== 1) throw new Error(`expected one anchored splat primitive, found ${anchored.length}`);
+        const splat = anchored[0];
+        const prim = splat.prim;
+        out.rest = {
+            means: toBase64(prim.rest.means), rotation: toBase64(prim.rest.rotations), scale: toBase64(prim.rest.scales),
+            opacity: toBase64(prim.rest.opacity), sh: toBase64(prim.rest.sh),
+        };
+        probe = new RemapProbe(splat.gpu, { fault: options.fault ?? null });
+        out.poses = [];
+        let gpuMs = 0;
+        for (const file of manifest.files.poses) {
+            const vertices = new Float32Array((await fetchBytes(base + file)).buffer);
+            const t1 = performance.now();
+            probe.run(vertices);
+            const r = await probe.read();
+            gpuMs += performance.now() - t1;
+            out.poses.push({ means: toBase64(r.means), rotation: toBase64(r.rotations), scale: toBase64(r.scales) });
+        }
+        // opacity and SH pass through the remap (the shader never touches them)
+        out.posed = { opacity: out.rest.opacity, sh: out.rest.sh };
+        out.stats = { splats: prim.count, faces: splat.rest.faceCount, loadMs: t0, gpuMs };
+    } finally {
+        probe?.destroy();
+        for (const s of anchored) s.destroy();
+        root.destroy();
+        app.assets.remove(asset);
+        asset.unload();
+    }
+    out.stats.loadMs = performance.now() - out.stats.loadMs - out.stats.gpuMs;
+    return out;
+}
+
+/** @type {any} */ (window).gsvConformance = { init, runCase };
+/** @type {any} */ (window).gsvReady = true;

@@ -1,0 +1,199 @@
+#!/usr/bin/env node
+// The conformance harness of the GPU path, in a real browser:
+//   node conformance/run-browser.mjs SUITE RESULTS [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]
+// serves the package and SUITE on localhost, starts headless Chromium (playwright-core, the
+// system /usr/bin/chromium or $CHROMIUM, WebGL2 through ANGLE/SwiftShader when there is no GPU),
+// imports every case with the PlayCanvas plugin, remaps every pose on the GPU with the same
+// remap chunk that renders, reads the float32 results back and writes the dump layout of
+// spec/conformance.md (rotation + scale dumps) into RESULTS, with `refused` for refusals and
+// RESULTS/harness.json naming the engine and the WebGL renderer. --fault NAME builds a
+// deliberately broken shader (see src/playcanvas/shader.js FAULTS). --backend webgpu runs the
+// WGSL twin on PlayCanvas's WebGPU device (Chromium's WebGPU, SwiftShader adapter here). Then
+// `gsverse-conformance check SUITE RESULTS` judges it.
+
+import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join, resolve } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+import { chromium } from 'playwright-core';
+
+import { matchesGlob, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
+import { startServer } from './server.mjs';
+
+const PKG_DIR = fileURLToPath(new URL('..', import.meta.url));
+
+/** Chromium flags: headless, software WebGL2 (SwiftShader) where there is no GPU, no network. */
+export const CHROMIUM_ARGS = [
+    '--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update',
+    '--disable-sync', '--no-first-run',
+];
+
+/** Extra flags for WebGPU (software adapter when there is no GPU). */
+export const WEBGPU_ARGS = ['--enable-unsafe-webgpu', '--use-webgpu-adapter=swiftshader'];
+
+/**
+ * Start the static server and headless Chromium on a page of this package.
+ * @param {{suiteDir?: string, page?: string, extraMounts?: {[prefix: string]: string}, webgpu?: boolean}} options
+ *   page: path under the package, e.g. 'conformance/page/index.html'
+ * @returns {Promise<{page: import('playwright-core').Page, url: string, close: () => Promise<void>}>}
+ */
+export async function launchPage(options) {
+    /** @type {{[prefix: string]: string}} */
+    const mounts = { '/pkg/': PKG_DIR, ...(options.extraMounts || {}) };
+    if (options.suiteDir) mounts['/suite/'] = options.suiteDir;
+    const server = await startServer(mounts);
+    const userDataDir = mkdtempSync(join(tmpdir(), 'gsverse-chromium-'));
+    let context;
+    try {
+        context = await chromium.launchPersistentContext(userDataDir, {
+            executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+            headless: true,
+            args: options.webgpu ? [...CHROMIUM_ARGS, ...WEBGPU_ARGS] : CHROMIUM_ARGS,
+            viewport: { width: 256, height: 256 },
+        });
+    } catch (err) {
+        await server.close();
+        rmSync(userDataDir, { recursive: true, force: true });
+        throw err;
+    }
+    const page = context.pages()[0] || await context.newPage();
+    /** @type {string[]} */
+    const consoleErrors = [];
+    page.on('console', (msg) => { if (msg.type() === 'error') consoleErrors.push(msg.text()); });
+    page.on('pageerror', (err) => consoleErrors.push(String(err)));
+    const url = `${server.url}/pkg/${options.page || 'conformance/page/index.html'}`;
+    await page.goto(url);
+    try {
+        await page.waitForFunction(() => /** @type {any} */ (window).gsvReady === true, null, { timeout: 30000 });
+    } catch (err) {
+        throw new Error(`the page did not start: ${consoleErrors.join(' | ') || err}`);
+    }
+    return {
+        page,
+        url,
+        close: async () => {
+            await context.close();
+            await server.close();
+            rmSync(userDataDir, { recursive: true, force: true });
+        },
+    };
+}
+
+/** @param {string} b64 */
+function f32(b64) {
+    const bytes = Buffer.from(b64, 'base64');
+    const out = new Float32Array(bytes.byteLength / 4);
+    new Uint8Array(out.buffer).set(bytes);
+    return out;
+}
+
+/** @param {any} dump */
+function decodeDump(dump) {
+    /** @type {{[key: string]: Float32Array}} */
+    const out = {};
+    for (const [key, value] of Object.entries(dump || {})) out[key] = f32(/** @type {string} */ (value));
+    return out;
+}
+
+/**
+ * Run a suite in the browser and write RESULTS.
+ * @param {string} suiteDir
+ * @param {string} resultsDir
+ * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', log?: (line: string) => void}} [options]
+ */
+export async function runSuiteInBrowser(suiteDir, resultsDir, options = {}) {
+    const log = options.log || (() => {});
+    const t0 = performance.now();
+    const backendName = options.backend || 'webgl2';
+    const browser = await launchPage({ suiteDir, webgpu: backendName === 'webgpu' });
+    /** @type {{id: string, kind: string, outcome: string, code?: string, ms: number}[]} */
+    const summary = [];
+    try {
+        const backend = await browser.page.evaluate((b) => /** @type {any} */ (window).gsvConformance.init({ backend: b }), backendName);
+        const pkg = JSON.parse(readFileSync(join(PKG_DIR, 'package.json'), 'utf8'));
+        writeHarness(resultsDir, {
+            name: `@gsverse/web PlayCanvas plugin (GPU remap, src/playcanvas/${backend.device === 'webgpu' ? 'shader-wgsl.js, WGSL' : 'shader.js, GLSL'})`,
+            version: pkg.version,
+            engine: `${backend.engine} ${backend.engine_version}`,
+            backend: `${backend.device}: ${backend.renderer}`,
+            renderer: backend.renderer,
+            vendor: backend.vendor,
+            api: backend.version,
+            shading_language: backend.shading_language,
+            browser: backend.user_agent,
+            precision: `float32 GPU arithmetic (${backend.float_precision}); rest quantities in binary64 on the CPU, uploaded as float32`,
+            dump: 'rotation+scale read back from the GPU (RGBA32F); rest, opacity and SH from the importer',
+            fault: options.fault || null,
+        });
+        for (const { manifest } of readSuite(suiteDir)) {
+            if (!matchesGlob(manifest.id, options.cases)) continue;
+            const t1 = performance.now();
+            /** @type {import('./dump.mjs').CaseResults & {code?: string}} */
+            let results;
+            try {
+                const r = await browser.page.evaluate(
+                    ([path, fault]) => /** @type {any} */ (window).gsvConformance.runCase(path, { fault }),
+                    [`cases/${manifest.id}`, options.fault || null]);
+                if (r.refused !== undefined) {
+                    results = { refused: r.refused, code: r.code };
+                } else {
+                    results = { rest: decodeDump(r.rest), poses: r.poses.map(decodeDump), posed: decodeDump(r.posed) };
+                }
+            } catch (err) {
+                results = { error: `${err instanceof Error ? err.message : String(err)}` };
+            }
+            writeCaseResults(resultsDir, manifest.id, results);
+            const outcome = results.refused !== undefined ? 'refused' : results.error !== undefined ? 'error' : 'remapped';
+            const ms = performance.now() - t1;
+            summary.push({ id: manifest.id, kind: manifest.kind, outcome, code: results.code, ms });
+            log(`${outcome.padEnd(8)} ${manifest.id}${results.code ? ` ${results.code}` : ''}${results.error ? ` ${results.error.split('\n')[0]}` : ''} ${ms.toFixed(0)} ms`);
+        }
+        return { backend, summary, seconds: (performance.now() - t0) / 1000 };
+    } finally {
+        await browser.close();
+    }
+}
+
+async function main() {
+    const args = process.argv.slice(2);
+    /** @type {{[key: string]: string}} */
+    const values = {};
+    const flags = new Set();
+    /** @type {string[]} */
+    const positional = [];
+    for (let i = 0; i < args.length; ++i) {
+        if (args[i] === '--fault' || args[i] === '--cases' || args[i] === '--backend') values[args[i]] = args[++i];
+        else if (args[i].startsWith('--')) flags.add(args[i]);
+        else positional.push(args[i]);
+    }
+    if (positional.length !== 2) {
+        process.stderr.write('usage: node conformance/run-browser.mjs SUITE RESULTS [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]\n');
+        process.exit(2);
+    }
+    const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
+    const json = flags.has('--json');
+    const { backend, summary, seconds } = await runSuiteInBrowser(suiteDir, resultsDir, {
+        fault: values['--fault'] || null,
+        cases: values['--cases'],
+        backend: /** @type {'webgl2'|'webgpu'} */ (values['--backend'] || 'webgl2'),
+        log: json ? undefined : (line) => process.stdout.write(`${line}\n`),
+    });
+    const count = (/** @type {string} */ o) => summary.filter((s) => s.outcome === o).length;
+    const totals = { cases: summary.length, remapped: count('remapped'), refused: count('refused'), errors: count('error') };
+    if (json) {
+        process.stdout.write(`${JSON.stringify({ results: resultsDir, backend, seconds, ...totals, cases: summary }, null, 1)}\n`);
+    } else {
+        process.stdout.write(`${totals.cases} cases: ${totals.remapped} remapped, ${totals.refused} refused, ${totals.errors} errors `
+            + `in ${seconds.toFixed(1)} s on ${backend.engine} ${backend.engine_version}, ${backend.device}: ${backend.renderer} -> ${resultsDir}\n`);
+    }
+    process.exit(totals.errors ? 1 : 0);
+}
+
+if (process.argv[1] && resolve(process.argv[1]) === fileURLToPath(import.meta.url)) {
+    main().catch((err) => {
+        process.stderr.write(`${err instanceof Error ? err.stack : String(err)}\n`);
+        process.exit(1);
+    });
+}

@@ -1,0 +1,89 @@
+// Shared JSDoc types of @gsverse/web. This module exports nothing at run time; import the
+// types with `/** @typedef {import('./types.js').AnchoredPrimitive} AnchoredPrimitive */`.
+
+/**
+ * The rest pose of a splat primitive as imported (spec/README.md §Overview;
+ * KHR_gaussian_splatting attributes, dequantized).
+ * @typedef {object} RestPose
+ * @property {Float32Array} means      (3N) POSITION, splat-local space
+ * @property {Float32Array} rotations  (4N) unit quaternions x, y, z, w (normalized on import)
+ * @property {Float32Array} scales     (3N) linear scales
+ * @property {Float32Array} opacity    (N) linear opacity
+ * @property {Float32Array} sh         (N*K*3) SH coefficients, coefficient-major (k = l² + n), then RGB
+ */
+
+/**
+ * The anchor triangle primitive (spec/README.md §The anchor mesh).
+ * @typedef {object} AnchorMesh
+ * @property {number} mesh          glTF mesh index
+ * @property {number} primitive     primitive index in that mesh
+ * @property {number|null} node     the node instantiating the anchor mesh (its transform is ignored), or null
+ * @property {number} vertexCount   V
+ * @property {number} faceCount     F
+ * @property {boolean} indexed      false for a non-indexed anchor primitive
+ * @property {Float32Array} vertices (3V) rest positions in file order, splat-local space
+ * @property {Uint32Array} indices  (3F) corners of each triangle in stored order (0..3F-1 when not indexed)
+ */
+
+/**
+ * One anchored splat primitive with its anchors, dequantized.
+ * @typedef {object} AnchoredPrimitive
+ * @property {number} splatMesh         glTF mesh index of the KHR splat primitive
+ * @property {number} splatPrimitive    primitive index in that mesh
+ * @property {number|null} node         the (first) node instantiating the splat mesh, or null
+ * @property {Float64Array|null} nodeMatrix  that node's global matrix (column-major 4x4), or null
+ * @property {number} count             N, splats
+ * @property {number} shDegree          B
+ * @property {number} shCoefficients    K = (B + 1)²
+ * @property {RestPose} rest
+ * @property {AnchorMesh} anchorMesh
+ * @property {'local'|'games'} profile
+ * @property {'affine'|'rigid'|null} deformation  null for games
+ * @property {Uint32Array} faceIndex     (N)
+ * @property {Float32Array} barycentrics (2N) b1, b2 (local) or α1, α2 (games), dequantized; b0 = 1 − b1 − b2
+ * @property {Float32Array|null} normalOffset  (N) local only
+ * @property {Float32Array|null} localRotation (4N) unit x, y, z, w, local only
+ * @property {Float32Array|null} localScale    (3N) linear, ≥ 0, local only
+ * @property {Float32Array|null} rho           (N) games only
+ * @property {{[key: string]: string}} componentTypes  stored component type of each anchor accessor, e.g. {barycentrics: 'UNSIGNED_SHORT normalized'}
+ */
+
+/**
+ * The result of readAnchoredGlb.
+ * @typedef {object} AnchoredGlb
+ * @property {AnchoredPrimitive[]} anchored  every anchored splat primitive
+ * @property {{mesh: number, primitive: number}[]} plain  KHR splat primitives without anchors
+ * @property {any} json  the glTF JSON document
+ */
+
+/**
+ * Rest quantities of the `local` profile, computed once per asset in binary64 from the stored
+ * float32 rest vertices (spec/README.md §Outputs, precision and epsilons). Arrays are per
+ * face f of the anchor mesh; the `games` profile needs none of them (they are computed anyway).
+ * @typedef {object} RestQuantities
+ * @property {number} faceCount       F
+ * @property {Uint8Array} regular     (F) 1 when a_r > ε_deg ℓ_r² (regular at rest), 0 when degenerate at rest
+ * @property {Float64Array} cinv      (3F) C_r⁻¹ = [[p, q], [0, r]] stored p, q, r: p = 1/|e1|,
+ *   q = −(e2·t)/(|e1| h), r = 1/h with h = a_r/|e1|; the identity (1, 0, 1) on faces degenerate at rest
+ * @property {Float64Array} area      (F) a_r = |e1 × e2| (twice the area; the true value on degenerate faces too)
+ * @property {Float64Array} sqrtArea  (F) √a_r on faces regular at rest, 1 on faces degenerate at rest
+ * @property {Float64Array} invSqrtArea (F) 1/√a_r on faces regular at rest, 1 on faces degenerate at rest
+ * @property {Float64Array} restFrame (9F) R_r = [t | b | n] row-major (columns t, b, n) of every rest face
+ */
+
+/**
+ * Means and covariances of a remap.
+ * @typedef {object} RemapOutput
+ * @property {Float32Array} means  (3N)
+ * @property {Float32Array} cov    (6N) xx, xy, xz, yy, yz, zz
+ */
+
+/**
+ * Means, rotations and scales of a remap (any pair with R diag(s)² Rᵀ = Σ).
+ * @typedef {object} RotationScaleOutput
+ * @property {Float32Array} means      (3N)
+ * @property {Float32Array} rotations  (4N) unit x, y, z, w
+ * @property {Float32Array} scales     (3N) linear
+ */
+
+export {};

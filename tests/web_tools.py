@@ -1,0 +1,74 @@
+"""Running the web plugin (``plugins/web``) and its demo (``examples/web``) from the tests.
+
+The plugin is an npm package: ``npm ci`` in ``plugins/web`` installs the engine (PlayCanvas),
+the physics engine of the demo (jolt-physics), playwright-core and TypeScript. The browser runs
+are headless Debian Chromium (``/usr/bin/chromium``, or ``GSVERSE_CHROMIUM``) on its software
+WebGL2 rasterizer. :func:`require_web_tools` skips a test when any of that is missing, or fails
+it when ``GSVERSE_REQUIRE_NODE_TOOLS=1`` (set by CI after installing them).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+WEB = ROOT / "plugins" / "web"
+DEMO = ROOT / "examples" / "web"
+_PACKAGES = ("playcanvas", "playwright-core", "jolt-physics", "typescript")
+
+
+def chromium() -> str | None:
+    """The Chromium executable the browser runs use, or None."""
+    path = os.environ.get("GSVERSE_CHROMIUM", "/usr/bin/chromium")
+    return path if os.path.isfile(path) and os.access(path, os.X_OK) else None
+
+
+def missing_web_tools(*, browser: bool) -> str | None:
+    """Why the web tools cannot run here, or None when they can."""
+    if shutil.which("node") is None:
+        return "node is not on PATH"
+    modules = WEB / "node_modules"
+    absent = [p for p in _PACKAGES if not (modules / p / "package.json").is_file()]
+    if absent:
+        return f"npm packages missing in {WEB} ({', '.join(absent)}): run 'npm ci' there"
+    if browser and chromium() is None:
+        return "Chromium not found at /usr/bin/chromium (apt-get install chromium)"
+    return None
+
+
+def require_web_tools(*, browser: bool = False) -> None:
+    """Skip (or, under ``GSVERSE_REQUIRE_NODE_TOOLS=1``, fail) when the web tools are missing."""
+    import pytest
+
+    reason = missing_web_tools(browser=browser)
+    if reason is None:
+        return
+    if os.environ.get("GSVERSE_REQUIRE_NODE_TOOLS") == "1":
+        pytest.fail(reason + "; required by GSVERSE_REQUIRE_NODE_TOOLS=1", pytrace=False)
+    pytest.skip(reason)
+
+
+def run_node(args: list[str | os.PathLike], *, cwd: Path = WEB, timeout: float = 600.0,
+             env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """Run ``node ARGS...`` and return the finished process (output captured as text)."""
+    full_env = dict(os.environ)
+    browser = chromium()
+    if browser is not None:  # the one executable every browser run of the tests uses
+        full_env["GSVERSE_CHROMIUM"] = full_env["CHROMIUM"] = browser
+    full_env.update(env or {})
+    return subprocess.run(["node", *map(str, args)], cwd=cwd, env=full_env, capture_output=True,
+                          text=True, timeout=timeout, check=False)
+
+
+def artifacts_dir(name: str) -> Path:
+    """Where a test stores files a person looks at afterwards (``GSVERSE_ARTIFACTS`` or
+    ``test-artifacts/`` in the repository), one folder per test."""
+    base = Path(os.environ.get("GSVERSE_ARTIFACTS", ROOT / "test-artifacts"))
+    folder = base / name
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    return folder
