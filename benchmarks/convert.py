@@ -103,7 +103,7 @@ def run(quick: bool = False, log=print, workdir: str | None = None) -> dict:
     res = {"n_splats": n, "n_faces": mesh.face_count,
            "input_mb": splats.stat().st_size / 2**20}
     cmd = [sys.executable, "-c", "from gsverse_format.cli.convert import main; raise SystemExit(main())",
-           str(splats), str(out), "--mesh", str(mesh_path), "-q"]
+           str(splats), str(out), "--mesh", str(mesh_path), "-q", "-w"]
     runs = [run_process(cmd) for _ in range(1 if quick else 3)]
     if any(r["rc"] != 0 for r in runs):
         res["error"] = runs[-1]["output"][-2000:]

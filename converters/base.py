@@ -17,9 +17,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from gsverse_format.model import Anchors, SplatCloud, TriangleMesh
+from gsverse_format.errors import FormatError
+from gsverse_format.model import Anchors, KhrProperties, SplatCloud, TriangleMesh
 
-__all__ = ["SourceOptions", "SourceResult", "TrellisFrame"]
+__all__ = ["SourceOptions", "SourceResult", "TrellisFrame", "require_splats"]
 
 #: Which rotation takes a TRELLIS PLY into the frame of the GLB of the same run.
 TrellisFrame = Literal["current", "legacy", "none"]
@@ -45,8 +46,10 @@ class SourceOptions:
 @dataclass
 class SourceResult:
     """A loaded source: rest-pose splats, anchor mesh (None: reconstruct one from the splats),
-    optional exact anchors, remarks, measurements, and the coordinate frame all of it is in
-    (a key of :data:`gsverse_format.io.registry.FRAMES`)."""
+    optional exact anchors, remarks, measurements, the coordinate frame all of it is in
+    (a key of :data:`gsverse_format.io.registry.FRAMES`), and the ``KHR_gaussian_splatting``
+    properties the splats are rendered with (a KHR glTF source's own; the defaults
+    otherwise)."""
 
     splats: SplatCloud
     mesh: TriangleMesh | None
@@ -54,3 +57,11 @@ class SourceResult:
     notes: list[str] = field(default_factory=list)
     check: dict[str, Any] = field(default_factory=dict)
     frame: str = "gltf"
+    khr: KhrProperties = field(default_factory=KhrProperties)
+
+
+def require_splats(splats: SplatCloud, path: str, why: str = "the PLY holds none") -> None:
+    """Refuse an input without splats (a :class:`FormatError` naming ``path``): there is
+    nothing to convert, and an empty asset is never written."""
+    if not len(splats):
+        raise FormatError(f"no splats to convert ({why})", path)

@@ -38,7 +38,7 @@ import re
 
 import numpy as np
 
-from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult, require_splats
 from gsverse_format.converters.checkpoint import as_array, load_torch_checkpoint
 from gsverse_format.converters.registry import register_source
 from gsverse_format.errors import FormatError
@@ -336,6 +336,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
                               "point_cloud.ply (GS-Verse's scripts/import_params.py makes "
                               "model_params.json from it); put it there or pass it with --pt", ply)
     cloud = read_splat_ply(ply)
+    require_splats(cloud, ply)
     params = _read_params(params_path)
     notes.append(f"GaMeS parameters from {os.path.basename(params_path)}")
 

@@ -26,7 +26,8 @@ from gsverse_format.converters.registry import register_source
 from gsverse_format.errors import FormatError
 from gsverse_format.io.gltf import read_gltf
 from gsverse_format.io.mesh import read_mesh
-from gsverse_format.model import Anchors, GamesAnchors, LocalAnchors, SplatCloud, SplatPrimitive
+from gsverse_format.model import (Anchors, GamesAnchors, KhrProperties, LocalAnchors, SplatCloud,
+                                  SplatPrimitive)
 
 __all__ = ["load", "detect"]
 
@@ -52,6 +53,19 @@ def _concat_anchors(items: list[Anchors]) -> Anchors:
                         np.concatenate([a.rho for a in games]))
 
 
+def _common_khr(prims: list[SplatPrimitive], input_path: str) -> KhrProperties:
+    """The KHR properties (kernel, projection, sorting method, nested extensions) shared by
+    the primitives joined into one; primitives that differ cannot be joined."""
+    first = prims[0].khr
+    for prim in prims[1:]:
+        if prim.khr != first:
+            raise FormatError(f"splat primitives {prims[0].name or 'first'!r} and "
+                              f"{prim.name or 'another'!r} differ in their "
+                              f"KHR_gaussian_splatting kernel, projection, sorting method or "
+                              f"nested extensions and cannot be joined into one", input_path)
+    return first
+
+
 def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
     """Splats of a KHR glTF, with ``mesh_path`` or with the file's own anchoring."""
     asset = read_gltf(input_path)
@@ -67,7 +81,8 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
             notes.append(f"{len(prims)} splat primitives joined ({total} splats)")
         if asset.anchored:
             notes.append("the file's own anchoring is ignored: splats are bound to --mesh")
-        return SourceResult(splats, mesh, None, notes, {"primitives": len(prims)}, frame="gltf")
+        return SourceResult(splats, mesh, None, notes, {"primitives": len(prims)}, frame="gltf",
+                            khr=_common_khr(prims, input_path))
 
     anchored = asset.anchored
     if not anchored:
@@ -87,7 +102,8 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     notes.append(f"kept the file's {anchors.profile} anchoring of {len(splats)} splats "
                  f"({len(chosen)} primitive(s))")
     check = {"primitives": len(prims), "primitives_used": len(chosen), "splats_left_out": left}
-    return SourceResult(splats, first.mesh, anchors, notes, check, frame="gltf")
+    return SourceResult(splats, first.mesh, anchors, notes, check, frame="gltf",
+                        khr=_common_khr([p for p, _ in chosen], input_path))
 
 
 def detect(input_path: str, mesh_path: str | None) -> str | None:

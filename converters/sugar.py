@@ -38,7 +38,7 @@ import numpy as np
 
 from gsverse_format import quaternion as quat
 from gsverse_format.binding import bind_local
-from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult, require_splats
 from gsverse_format.converters.checkpoint import as_array, load_torch_checkpoint
 from gsverse_format.converters.registry import register_source
 from gsverse_format.errors import FormatError, GsverseError
@@ -287,6 +287,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
         raise FormatError("SuGaR splats need the refined mesh they were trained on: "
                           + _REFINED_FIX, input_path)
     splats = read_splat_ply(input_path)
+    require_splats(splats, input_path)
     notes: list[str] = []
     if options.pt_path is not None:
         mesh_name = os.fspath(options.pt_path)

@@ -40,7 +40,7 @@ import os
 
 import numpy as np
 
-from gsverse_format.converters.base import SourceOptions, SourceResult
+from gsverse_format.converters.base import SourceOptions, SourceResult, require_splats
 from gsverse_format.converters.registry import register_source
 from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.io.mesh import read_mesh
@@ -114,8 +114,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
                          "(or use --from 3dgs to reconstruct a mesh from the splats)", input_path)
     _check_layout(input_path)
     splats = read_splat_ply(input_path)
-    if len(splats) == 0:
-        raise FormatError("the PLY holds no splats", input_path)
+    require_splats(splats, input_path)
     reach = float(np.max(np.abs(splats.means)))
     if reach > CUBE_LIMIT:
         raise FormatError(f"splat centres reach {reach:.3g}, outside TRELLIS's cube [-0.5, 0.5]^3: "

@@ -14,8 +14,9 @@ Covariance of splat i is ``R_i diag(scales_i)² R_iᵀ``.
 """
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
-from typing import Literal, Union
+from typing import Any, Literal, Union
 
 import numpy as np
 
@@ -23,6 +24,10 @@ from .errors import FormatError, UsageError
 
 __all__ = [
     "check_primitive",
+    "prim_label",
+    "splat_problem",
+    "nested_extension_problem",
+    "KhrProperties",
     "SplatCloud",
     "TriangleMesh",
     "LocalAnchors",
@@ -262,13 +267,91 @@ class Anchoring:
                               f"with {self.mesh.face_count} faces")
 
 
+def _holds_integer(value: Any) -> bool:
+    if isinstance(value, bool):
+        return False
+    if isinstance(value, int):
+        return True
+    if isinstance(value, dict):
+        return any(_holds_integer(v) for v in value.values())
+    if isinstance(value, list):
+        return any(_holds_integer(v) for v in value)
+    return False
+
+
+def nested_extension_problem(name: str, obj: Any) -> str | None:
+    """Why the nested extension object ``obj`` (named ``name``) cannot be copied into a
+    rewritten file, or None when it can.
+
+    glTF refers to accessors, buffer views and meshes by integer index, and a writer renumbers
+    them all; an unknown extension's integers may be such indices (they are in every splat
+    compression or per-splat data extension), so copying them would make it point at the wrong
+    data. An object holding no integer at all (a marker like ``{}``, strings, floats) refers to
+    nothing in the file and is carried as it is.
+    """
+    if not isinstance(obj, dict):
+        return f"nested extension {name} is not a JSON object"
+    try:
+        json.dumps(obj, allow_nan=False)
+    except (TypeError, ValueError):
+        return f"nested extension {name} is not plain JSON (it holds NaN, infinity or objects)"
+    if _holds_integer(obj):
+        return (f"nested extension {name} holds integer values, which may index accessors, "
+                f"buffer views or meshes that a rewritten file renumbers (and per-splat data "
+                f"that reordered splats no longer match); it cannot be carried over")
+    return None
+
+
+@dataclass
+class KhrProperties:
+    """The ``KHR_gaussian_splatting`` properties of a primitive besides ``colorSpace`` (which
+    is :attr:`SplatCloud.color_space`).
+
+    ``kernel``, ``projection`` and ``sorting_method`` are open enumerations: other extensions
+    define further values, and a value this library does not know is kept as it is.
+    ``extensions`` holds the nested extension objects other than the anchor extension, by
+    name, as JSON (:meth:`carry_problem` says whether a writer can copy them);
+    ``attributes`` names the primitive's attributes that belong to them (``NAME:SEMANTIC``),
+    whose data are not read: an extension with such attributes cannot be carried.
+    """
+
+    kernel: str = "ellipse"
+    projection: str = "perspective"
+    sorting_method: str = "cameraDistance"
+    extensions: dict[str, Any] = field(default_factory=dict)
+    attributes: tuple[str, ...] = ()
+
+    def carry_problem(self) -> str | None:
+        """Why these nested extensions cannot be copied into a rewritten file, or None."""
+        if self.attributes:
+            return (f"nested extension {self.attributes[0].split(':')[0]} has per-splat "
+                    f"attribute(s) {', '.join(self.attributes)}, which are not carried over")
+        return next((p for p in (nested_extension_problem(n, o)
+                                 for n, o in self.extensions.items())
+                     if p is not None), None)
+
+    @property
+    def is_default(self) -> bool:
+        """Whether these are the base extension's values with no other extension."""
+        return self == KhrProperties()
+
+    def differences(self) -> list[str]:
+        """What differs from the base extension's defaults, for messages."""
+        out = [f"{key} {value!r}" for key, value, default in (
+            ("kernel", self.kernel, "ellipse"), ("projection", self.projection, "perspective"),
+            ("sortingMethod", self.sorting_method, "cameraDistance")) if value != default]
+        return out + [f"nested extension {name}" for name in self.extensions]
+
+
 @dataclass
 class SplatPrimitive:
-    """One splat primitive of an asset: splats (rest pose) and, optionally, their anchoring."""
+    """One splat primitive of an asset: splats (rest pose), optionally their anchoring, and
+    the ``KHR_gaussian_splatting`` properties they are rendered with (:class:`KhrProperties`)."""
 
     splats: SplatCloud
     anchoring: Anchoring | None = None
     name: str | None = None
+    khr: KhrProperties = field(default_factory=KhrProperties)
 
     def __post_init__(self) -> None:
         if self.anchoring is not None and len(self.anchoring.anchors) != len(self.splats):
@@ -300,21 +383,44 @@ def _require_finite(name: str, *arrays: np.ndarray) -> None:
             raise UsageError(f"{name} has non-finite values (NaN or infinity)")
 
 
+def splat_problem(c: SplatCloud) -> str | None:
+    """What makes the splats ``c`` invalid ``KHR_gaussian_splatting`` data (completing "has
+    ..."), or None: no splats, non-finite values, negative scales, opacities outside [0, 1]."""
+    if len(c) == 0:
+        return "no splats"
+    for name in ("means", "rotations", "scales", "opacities", "sh"):
+        values = getattr(c, name)
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values).reshape(len(c), -1).all(axis=1)))
+            return f"non-finite {name} (NaN or infinity) in {bad} of {len(c)} splats"
+    negative = int(np.count_nonzero((c.scales < 0).any(axis=1)))
+    if negative:
+        return (f"negative scales in {negative} of {len(c)} splats (KHR_gaussian_splatting "
+                f"scales are linear and non-negative; log-space scales, as some older "
+                f"exporters wrote, need exp())")
+    outside = int(np.count_nonzero((c.opacities < 0) | (c.opacities > 1)))
+    if outside:
+        return (f"opacities outside [0, 1] in {outside} of {len(c)} splats "
+                f"(KHR_gaussian_splatting opacities are linear, after the sigmoid)")
+    return None
+
+
+def prim_label(i: int, prim: SplatPrimitive) -> str:
+    """How messages name primitive ``i``: ``primitive 0 ('name')``."""
+    return f"primitive {i}" + (f" ({prim.name!r})" if prim.name else "")
+
+
 def check_primitive(i: int, prim: SplatPrimitive) -> None:
     """Raise :class:`~gsverse_format.errors.UsageError` when primitive ``i`` cannot be written:
-    no splats, non-finite values, negative scales, opacities outside [0, 1], anchors that do not
-    match the splats or the anchor mesh."""
-    label = f"primitive {i}" + (f" ({prim.name!r})" if prim.name else "")
+    splats with a :func:`splat_problem`, anchors that do not match the splats or the anchor
+    mesh."""
+    label = prim_label(i, prim)
     c = prim.splats
-    if len(c) == 0:
-        raise UsageError(f"{label} has no splats (glTF accessors need at least one element)")
-    _require_finite(f"{label} splats", c.means, c.rotations, c.scales, c.opacities, c.sh)
-    if (c.scales < 0).any():
-        raise UsageError(f"{label} has negative scales (KHR_gaussian_splatting scales are "
-                         f"linear and non-negative)")
-    if ((c.opacities < 0) | (c.opacities > 1)).any():
-        raise UsageError(f"{label} has opacities outside [0, 1] (KHR_gaussian_splatting "
-                         f"opacities are linear, after the sigmoid)")
+    problem = splat_problem(c)
+    if problem is not None:
+        if len(c) == 0:
+            problem += " (glTF accessors need at least one element)"
+        raise UsageError(f"{label} has {problem}")
     if prim.anchoring is None:
         return
     mesh, anchors = prim.anchoring.mesh, prim.anchoring.anchors

@@ -36,12 +36,13 @@ import numpy as np
 
 from .binding import bind_local
 from .converters import detect_source, get_source
-from .converters.base import SourceOptions, SourceResult, TrellisFrame
+from .converters.base import SourceOptions, SourceResult, TrellisFrame, require_splats
 from .converters.reconstruct import reconstruct_mesh
-from .errors import GsverseError, UsageError
-from .io.registry import FORMATS, FRAMES, find_format, read_asset, suffixes, write_asset
-from .model import (Anchoring, DeformationLaw, LocalAnchors, SplatAsset, SplatCloud,
-                    SplatPrimitive, TriangleMesh)
+from .errors import BindingError, FormatError, GsverseError, UsageError
+from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, suffixes,
+                          write_asset)
+from .model import (Anchoring, DeformationLaw, KhrProperties, LocalAnchors, SplatAsset,
+                    SplatCloud, SplatPrimitive, TriangleMesh, prim_label, splat_problem)
 from .nearest import closest_points_on_triangles
 from .progress import Progress
 from .transform import rotate_mesh, rotate_splats
@@ -50,6 +51,9 @@ __all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "to_glt
 
 #: Formats whose files can hold anchoring (kept by a format-only conversion).
 _ANCHORING_FORMATS = ("gltf", "usd")
+#: Why a format-only conversion's input has no splats, by input format.
+_NO_SPLATS = {"gltf": "the file has no KHR_gaussian_splatting POINTS primitive",
+              "ply": "the PLY has no vertices", "usd": "the stage has no splat prim with points"}
 #: The ``source`` a summary names for a format-only conversion, by input format.
 _FORMAT_SOURCE = {"gltf": "khr", "ply": "3dgs"}
 
@@ -201,13 +205,21 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         in_format = find_format(input_path, "read")
         summary.source = _FORMAT_SOURCE.get(in_format.name, in_format.name)
         asset = _read_noting_usd_warnings(input_path, options, summary)
+        if not asset.splat_count():
+            raise FormatError(f"no splats to convert ("
+                              f"{_NO_SPLATS.get(in_format.name, 'the file holds none')})",
+                              input_path)
+        for i, prim in enumerate(asset.primitives):
+            _require_valid_splats(prim.splats, input_path, prim_label(i, prim))
+        _require_writable_khr([(prim_label(i, p), p.khr) for i, p in enumerate(asset.primitives)],
+                              input_path, output_path)
         if options.sh_degree is not None:
             for prim in asset.primitives:
                 if prim.splats.sh_degree > options.sh_degree:
                     prim.splats = prim.splats.with_sh_degree(options.sh_degree)
         if options.plain:
-            asset = SplatAsset([SplatPrimitive(p.splats, None, p.name) for p in asset.primitives],
-                               asset.generator)
+            asset = SplatAsset([SplatPrimitive(p.splats, None, p.name, p.khr)
+                                for p in asset.primitives], asset.generator)
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
     source = options.source
@@ -224,6 +236,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                          frame_change=options.frame_change, reconstruct_faces=reconstruct_faces)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
+    _require_writable_khr([("the splats", result.khr)], input_path, output_path)
     asset = _anchor(result, options, progress, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
@@ -249,11 +262,43 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     ``"none"`` with ``frame_change`` off.)"""
     path = os.fspath(input_path)
     result = get_source(source).load(path, mesh_path, options or SourceOptions())
+    require_splats(result.splats, path, f"the {source} input holds none")
+    _require_valid_splats(result.splats, path)
     if frame_change:
         result = to_gltf(result)
     if result.mesh is None:
         result = reconstruct_mesh(result, reconstruct_faces, path)
     return result
+
+
+def _require_valid_splats(splats: SplatCloud, input_path: str, label: str = "") -> None:
+    """Refuse input splats that are not valid ``KHR_gaussian_splatting`` data (non-finite
+    values, negative scales, opacities outside [0, 1], zero rotation quaternions, as the PLY
+    reader does) as a :class:`FormatError` naming the input: checked when they are read, so
+    that the problem is the input's, not the output's."""
+    problem = splat_problem(splats)
+    zero = int(np.count_nonzero(~np.any(splats.rotations != 0, axis=1)))
+    if problem is None and zero:
+        problem = (f"zero rotation quaternions in {zero} of {len(splats)} splats (rotations "
+                   f"are unit quaternions)")
+    if problem is not None:
+        raise FormatError(f"{label + ': ' if label else ''}{problem}", input_path)
+
+
+def _require_writable_khr(labelled: list[tuple[str, KhrProperties]], input_path: str,
+                          output_path: str) -> None:
+    """Refuse what the output cannot keep of the input's ``KHR_gaussian_splatting``
+    properties (an unknown kernel, projection or sorting method, a nested extension) rather
+    than rewrite or drop it: a :class:`FormatError` naming the input, the value and why.
+    ``labelled``: (how to name the primitive, its properties)."""
+    out_format = find_format(output_path, "write")
+    for label, props in labelled:
+        problem = khr_loss(props, out_format, label)
+        carry = props.carry_problem()
+        if problem is None and carry is not None:
+            problem = f"{label}: {carry}"
+        if problem is not None:
+            raise FormatError(problem, input_path)
 
 
 def to_gltf(result: SourceResult) -> SourceResult:
@@ -297,6 +342,9 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
         summary.profile = anchoring.anchors.profile
         summary.deformation = getattr(anchoring.anchors, "deformation", None)
         summary.mesh_faces = anchoring.mesh.face_count
+    kept = sorted({d for p in asset.primitives for d in p.khr.differences()})
+    if kept:
+        summary.notes.append(f"kept the input's KHR_gaussian_splatting {', '.join(kept)}")
     if find_format(output_path, "write").name == "ply" and asset.anchored:
         summary.notes.append("PLY output stores plain splats: the anchoring is not written")
     poses = None
@@ -304,6 +352,7 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
         from .io.usd import load_poses
 
         poses = load_poses(options.bake_poses)
+        _require_poses_fit(asset, poses, options.bake_poses, summary.input)
         summary.notes.append(f"baked {len(poses.times)} anchor-mesh poses into USD time samples")
     progress.stage(f"writing {os.path.basename(output_path)}")
     write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
@@ -312,6 +361,23 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
     summary.output_bytes = os.path.getsize(output_path)
     summary.seconds = time.perf_counter() - start
     return summary
+
+
+def _require_poses_fit(asset: SplatAsset, poses: Any, poses_path: str, input_path: str) -> None:
+    """``--bake-poses`` needs splats anchored to one mesh (else a :class:`UsageError` naming
+    the input: the flag does not apply to it) and poses of that mesh's vertices (else a
+    :class:`FormatError` naming the poses file)."""
+    meshes = {id(p.anchoring.mesh): p.anchoring.mesh for p in asset.anchored
+              if p.anchoring is not None}
+    if len(meshes) != 1:
+        raise UsageError(f"--bake-poses needs splats anchored to exactly one mesh, this input "
+                         f"has {len(meshes)} anchor meshes"
+                         + ("" if meshes else " (convert with --mesh first)"), input_path)
+    (mesh,) = meshes.values()
+    if poses.vertices.shape[1] != len(mesh.vertices):
+        raise FormatError(f"poses have {poses.vertices.shape[1]} vertices but the anchor mesh "
+                          f"has {len(mesh.vertices)}: give every vertex of the written anchor "
+                          f"mesh, in its order (without --faces decimation)", poses_path)
 
 
 def _face_distances(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray) -> np.ndarray:
@@ -332,7 +398,10 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         from .meshops import decimate
 
         progress.stage(f"decimating {mesh.face_count} -> {options.faces} faces")
-        mesh = decimate(mesh, options.faces)
+        try:
+            mesh = decimate(mesh, options.faces)
+        except FormatError as exc:   # the mesh's fault: name the file it came from
+            raise exc.with_path(options.mesh or summary.input) from None
         if anchors is not None:
             summary.notes.append("--faces: the source's exact binding was replaced by nearest-"
                                  "triangle binding to the decimated mesh (local profile)")
@@ -373,10 +442,17 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     name = os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
     if keep_idx.size:
         primitives.append(SplatPrimitive(splats.subset(keep_idx),
-                                         Anchoring(mesh, anchors.subset(keep_idx)), name))
+                                         Anchoring(mesh, anchors.subset(keep_idx)), name,
+                                         result.khr))
     if far_idx.size:
         if options.drop_unanchored:
             summary.dropped = int(far_idx.size)
         else:
-            primitives.append(SplatPrimitive(splats.subset(far_idx), None, f"{name} static"))
+            primitives.append(SplatPrimitive(splats.subset(far_idx), None, f"{name} static",
+                                             result.khr))
+    if not primitives:
+        raise BindingError(f"all {len(splats)} splats are farther than --max-distance from "
+                           f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}, so "
+                           f"--drop-unanchored leaves nothing to write (is the mesh in the "
+                           f"splats' frame?)", summary.input)
     return SplatAsset(primitives)

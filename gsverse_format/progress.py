@@ -24,7 +24,8 @@ class Progress:
             self.stream.write(f"{label} ...")
             self.stream.flush()
 
-    def update(self, done: int, total: int) -> None:
+    def update(self, done: int, total: int, detail: str = "") -> None:
+        """Redraw the bar at ``done`` of ``total``; ``detail`` follows the percentage."""
         if not self.enabled or total <= 0:
             return
         now = time.monotonic()
@@ -34,7 +35,8 @@ class Progress:
         frac = min(max(done / total, 0.0), 1.0)
         filled = int(round(frac * self.width))
         bar = "#" * filled + "." * (self.width - filled)
-        self.stream.write(f"\r{self._label} [{bar}] {frac * 100:3.0f}%")
+        tail = f" {detail}" if detail else ""
+        self.stream.write(f"\r{self._label} [{bar}] {frac * 100:3.0f}%{tail}")
         self.stream.flush()
 
     def _finish_line(self) -> None:

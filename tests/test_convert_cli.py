@@ -1,11 +1,13 @@
 """``gsverse-convert`` end to end: conversions, round trips, errors, atomic output."""
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -174,7 +176,7 @@ def test_truncated_ply_leaves_existing_output_untouched(example, tmp_path):
     bad.write_bytes(data[: len(data) // 2])
     out = tmp_path / "out.glb"
     out.write_bytes(b"previous contents")
-    proc = run_cli(str(bad), str(out), "--mesh", obj)
+    proc = run_cli(str(bad), str(out), "--mesh", obj, "-w")
     _assert_clean_failure(proc, "truncated.ply")
     assert out.read_bytes() == b"previous contents"
     assert sorted(os.listdir(tmp_path)) == ["out.glb", "truncated.ply"]  # no temp files left
@@ -229,3 +231,89 @@ def test_missing_output_folder(example, tmp_path):
     ply, _ = example
     proc = run_cli(ply, str(tmp_path / "no" / "such" / "out.glb"))
     _assert_clean_failure(proc, code=2)
+
+
+# --- existing outputs, -q, standard input and output ----------------------------------------
+
+def test_existing_output_needs_overwrite(example, tmp_path):
+    ply, obj = example
+    out = tmp_path / "out.glb"
+    out.write_bytes(b"previous contents")
+    proc = run_cli(ply, str(out), "--mesh", obj)
+    _assert_clean_failure(proc, "out.glb", "--overwrite", code=2)
+    assert out.read_bytes() == b"previous contents"
+    proc = run_cli(ply, str(out), "--mesh", obj, "-w", "-q")
+    assert proc.returncode == 0 and proc.stdout == proc.stderr == ""
+    assert read_gltf(out).splat_count() == 3000
+
+
+def test_quiet_silences_every_warning(example, tmp_path):
+    """pymeshlab (--faces) loads its own older libtbb before numba's first parallel kernel,
+    and numba then warns that its TBB threading layer is disabled: -q silences that too."""
+    ply, obj = example
+    suffix = ".usda" if importlib.util.find_spec("pxr") else ".glb"
+    env = dict(os.environ)
+    env.pop("PYTHONWARNINGS", None)
+    runs = {}
+    for quiet in (False, True):
+        runs[quiet] = subprocess.run(
+            [sys.executable, "-m", "gsverse_format.cli.convert", ply,
+             str(tmp_path / f"out{quiet}{suffix}"), "--mesh", obj, "--faces", "600"]
+            + (["-q"] if quiet else []), capture_output=True, text=True, timeout=300, env=env)
+        assert runs[quiet].returncode == 0, runs[quiet].stderr
+    # Where pymeshlab's libtbb is older than numba needs, the loud run shows the warning.
+    assert "Traceback" not in runs[False].stderr
+    assert runs[True].stdout == runs[True].stderr == ""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert main([ply, str(tmp_path / "in-process.glb"), "--plain", "-q"]) == 0
+        warnings.warn("a warning after main() returned")
+    assert [str(w.message) for w in caught] == ["a warning after main() returned"]
+
+
+def test_stdin_to_stdout_glb_and_ply(example, tmp_path):
+    ply, obj = example
+    data = open(ply, "rb").read()
+    proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert", "-", "-",
+                           "--to", "glb", "--mesh", obj, "--keep-order", "--json"], input=data,
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout[:4] == b"glTF"
+    summary = json.loads(proc.stderr)  # the summary goes to stderr when stdout is the output
+    assert summary["input"] == summary["output"] == "-" and summary["anchored"] == 3000
+    (tmp_path / "piped.glb").write_bytes(proc.stdout)
+    prim = read_gltf(tmp_path / "piped.glb").anchored[0]
+    assert prim.name == "stdin"
+    # GLB on standard input (sniffed), PLY file out; and back to a PLY on standard output
+    proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert", "-",
+                           str(tmp_path / "back.ply"), "-q"], input=proc.stdout,
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert_ply_roundtrip(read_splat_ply(ply), read_splat_ply(tmp_path / "back.ply"))
+    proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert",
+                           str(tmp_path / "piped.glb"), "-", "--to", "ply", "-q"],
+                          capture_output=True, timeout=300)
+    assert proc.returncode == 0 and proc.stdout == (tmp_path / "back.ply").read_bytes()
+
+
+@pytest.mark.parametrize("args,stdin,needle", [
+    (["-", "-"], b"ply\n", "--to glb or --to ply"),
+    (["-", "-", "--to", "usda"], b"ply\n", "cannot go to standard output"),
+    (["-", "OUT"], b"not a splat file", "neither a PLY nor a GLB"),
+    (["-", "OUT"], b"", "standard input is empty"),
+])
+def test_stdio_refusals(tmp_path, args, stdin, needle):
+    args = [str(tmp_path / "o.glb") if a == "OUT" else a for a in args]
+    proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert", *args],
+                          input=stdin, capture_output=True, timeout=300)
+    err = proc.stderr.decode()
+    assert proc.returncode == 2 and needle in err and len(err.strip().splitlines()) == 1, err
+    assert proc.stdout == b"" and not (tmp_path / "o.glb").exists()
+
+
+def test_single_and_batch_usage_errors(example, tmp_path):
+    ply, _ = example
+    for args in ([ply], [ply, str(tmp_path / "a.glb"), str(tmp_path / "b.glb")],
+                 [ply, str(tmp_path / "a.glb"), "--jobs", "2"]):
+        proc = run_cli(*args)
+        assert proc.returncode == 2 and "usage:" in proc.stderr and "Traceback" not in proc.stderr

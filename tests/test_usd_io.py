@@ -692,24 +692,28 @@ def test_cli_bake_poses_errors(tmp_path, example):
                                     {"time": 0, "vertices": mesh.vertices.tolist()}]))
     plain = tmp_path / "plain.glb"
     write_gltf(SplatAsset([SplatPrimitive(random_splats(4, 0), None, "p")]), plain)
+    # Wrong flags or arguments exit 2; a poses file that holds the wrong data is bad input
+    # (exit 1), named in the message.
     cases = [
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.glb"), "--bake-poses", str(good)],
-         "needs a USD output"),
+         "needs a USD output", 2, None),
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.usda"), "--bake-poses", str(wrong_v)],
-         "5 vertices"),
+         "5 vertices", 1, wrong_v),
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.usda"), "--bake-poses", str(unsorted)],
-         "strictly increasing"),
+         "strictly increasing", 1, unsorted),
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.usda"), "--bake-poses",
-          str(tmp_path / "none.npz")], "file not found"),
+          str(tmp_path / "none.npz")], "file not found", 2, tmp_path / "none.npz"),
         ([str(plain), str(tmp_path / "o.usda"), "--bake-poses", str(good)],
-         "exactly one anchor mesh"),
+         "exactly one mesh", 2, plain),
     ]
-    for argv, message in cases:
+    for argv, message, code, named in cases:
         proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert", *argv, "-q"],
                               capture_output=True, text=True, timeout=300)
-        assert proc.returncode == 2, (argv, proc.stderr)
+        assert proc.returncode == code, (argv, proc.stderr)
         lines = proc.stderr.strip().splitlines()
         assert len(lines) == 1 and message in lines[0], (message, proc.stderr)
+        if named is not None:
+            assert f"error: {named}: " in lines[0], lines
     assert not [n for n in os.listdir(tmp_path) if n.startswith("o.")]
 
 

@@ -26,12 +26,12 @@ def chromium() -> str | None:
     return path if os.path.isfile(path) and os.access(path, os.X_OK) else None
 
 
-def missing_web_tools(*, browser: bool) -> str | None:
-    """Why the web tools cannot run here, or None when they can."""
+def missing_web_tools(*, browser: bool, packages: tuple[str, ...] = ()) -> str | None:
+    """Why the web tools (and the extra npm ``packages``) cannot run here, or None when they can."""
     if shutil.which("node") is None:
         return "node is not on PATH"
     modules = WEB / "node_modules"
-    absent = [p for p in _PACKAGES if not (modules / p / "package.json").is_file()]
+    absent = [p for p in (*_PACKAGES, *packages) if not (modules / p / "package.json").is_file()]
     if absent:
         return f"npm packages missing in {WEB} ({', '.join(absent)}): run 'npm ci' there"
     if browser and chromium() is None:
@@ -39,11 +39,12 @@ def missing_web_tools(*, browser: bool) -> str | None:
     return None
 
 
-def require_web_tools(*, browser: bool = False) -> None:
-    """Skip (or, under ``GSVERSE_REQUIRE_NODE_TOOLS=1``, fail) when the web tools are missing."""
+def require_web_tools(*, browser: bool = False, packages: tuple[str, ...] = ()) -> None:
+    """Skip (or, under ``GSVERSE_REQUIRE_NODE_TOOLS=1``, fail) when the web tools, or the extra
+    npm ``packages`` of ``plugins/web`` a test needs, are missing."""
     import pytest
 
-    reason = missing_web_tools(browser=browser)
+    reason = missing_web_tools(browser=browser, packages=packages)
     if reason is None:
         return
     if os.environ.get("GSVERSE_REQUIRE_NODE_TOOLS") == "1":

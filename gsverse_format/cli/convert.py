@@ -1,22 +1,91 @@
 """``gsverse-convert``: splats from 3DGS, SuGaR, TRELLIS, GaMeS or KHR glTF -> anchored GLB.
 
-Exit codes: 0 success, 1 bad input or failed conversion, 2 usage error. Errors are one line on
-stderr (``gsverse-convert: error: <file>: <cause>``), never a traceback.
+One file: ``gsverse-convert IN OUT``; many: ``gsverse-convert IN... --output-dir DIR``
+(:mod:`gsverse_format.batch`, local processes or ``--scheduler`` on Dask).
+
+Exit codes: 0 success, 1 bad input or failed conversion (in a batch: any asset failed), 2 usage
+error, 130 interrupted. Errors are one line on stderr (``gsverse-convert: error: <file>:
+<cause>``), never a traceback.
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import shutil
 import sys
+import tempfile
+import warnings
+from typing import IO, Iterator
 
 from ..version import __version__
 from ..converters import SOURCES
-from ..pipeline import ConvertOptions, convert
+from ..pipeline import ConvertOptions, ConvertSummary, convert
 from ..errors import GsverseError, UsageError
 from ..progress import Progress
 
 PROG = "gsverse-convert"
+#: ``--to`` choices (output suffixes without the dot) and those that can go to standard output.
+TO_FORMATS = ("glb", "gltf", "ply", "usda", "usdc", "usd", "usdz")
+STDOUT_FORMATS = ("glb", "ply")
+
+EPILOG = """\
+examples:
+  gsverse-convert splats.ply anchored.glb --mesh mesh.obj
+  gsverse-convert scans/*.ply --output-dir out/ --plain          # many files, all CPUs
+  gsverse-convert 'library/**/*.ply' manifest.csv -o out/ -j 8   # quoted glob, manifest
+  gsverse-convert assets.json -o out/ --scheduler tcp://host:8786   # on a Dask cluster
+  cat splats.ply | gsverse-convert - - --to glb --plain > out.glb
+
+existing outputs:
+  like splat-transform, an existing output is never replaced unless -w/--overwrite is given
+  (exit 2, nothing written). A batch checks every output before it starts; --skip-existing
+  keeps existing outputs and converts the rest (resuming an interrupted batch: outputs are
+  written atomically, so an existing output is a complete one).
+
+batch (--output-dir DIR):
+  inputs are files or folders, glob patterns (*, ?, [..], ** for any depth; quote them for
+  large libraries) and manifests (.csv or .json). Each output is DIR/<the input's path
+  relative to the inputs' common folder> with the --to suffix (default glb), or the
+  manifest's output. The command line's options apply to every asset; a manifest overrides
+  them per asset. Conversions run in --jobs local processes (default: the CPU count; one asset
+  at a time each) with a progress bar over files; a failing asset is reported (one line on
+  stderr, or in --json) and the others still convert. Exit status 0 when all converted,
+  1 when any failed, 2 for usage errors (nothing converted), 130 when interrupted.
+  --json prints {output_dir, scheduler, jobs, total, ok, failed, skipped, interrupted,
+  seconds, assets: [{input, output, status, error, summary}]} (counts, then one entry per
+  asset in input order; status ok, failed, skipped or interrupted; error: one line; summary:
+  the single-file --json summary).
+
+manifests:
+  CSV with a header row, or JSON: a list of objects (or {"assets": [...]}; a bare string is an
+  input). Keys: input (required), output (relative to DIR), mesh, from, pt, k, deformation,
+  max-distance, absolute-distance, drop-unanchored, faces, reconstruct-faces, sh-degree,
+  keep-order, plain, legacy-trellis-frame, no-frame-change, bake-poses (dashes or
+  underscores). Paths are relative to the manifest's folder; booleans true/false, yes/no or
+  1/0; an empty cell or a missing key takes the command line's value. Example CSV:
+      input,mesh,output,faces
+      chair/splats.ply,chair/mesh.obj,chair.glb,5000
+      tree/splats.ply,,tree.glb,
+
+Dask (--scheduler ADDRESS):
+  the same batch, one task per asset, on a Dask distributed cluster whose workers have
+  gsverse-format installed and see the same paths (a shared file system). Memory per worker
+  stays bounded by one asset when workers run one task at a time: start them with
+  'dask worker ADDRESS --nthreads 1', or with '--resources asset=1' (each task then asks for
+  one unit of "asset"); a warning says when a worker could run several assets at once.
+
+standard input and output ('-'):
+  IN '-' reads a PLY or a GLB from standard input (recognised by its first bytes; other
+  formats need a file, their parts may live beside it). OUT '-' writes to standard output,
+  with --to glb or --to ply (USD and .gltf outputs are refused: they need a file name); the
+  summary then goes to standard error. The primitive is named "stdin" for standard input.
+
+quiet:
+  -q prints no progress, no summary and no warning (also in worker and child processes);
+  errors are still printed.
+"""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -24,12 +93,29 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description="Convert Gaussian splats to a mesh-anchored glTF asset "
                     "(KHR_gaussian_splatting + GSVERSE_gaussian_splatting_mesh_anchor).",
-        epilog="Example: gsverse-convert splats.ply anchored.glb --mesh mesh.obj")
-    p.add_argument("input", help="splats: a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, a USD "
-                                 "file (.usda/.usdc/.usd/.usdz), or a GaMeS / GS-Verse output "
-                                 "folder")
-    p.add_argument("output", help="output .glb, .gltf, .usda, .usdc, .usd, .usdz (USD needs "
-                                  "usd-core), or .ply (plain splats, no anchoring)")
+        usage=f"{PROG} IN OUT [options]\n       {PROG} IN... --output-dir DIR [options]",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("paths", nargs="+", metavar="IN",
+                   help="IN OUT: the input (a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, "
+                        "a USD file .usda/.usdc/.usd/.usdz, a GaMeS / GS-Verse output folder, or "
+                        "'-' for standard input) and the output (.glb, .gltf, .usda, .usdc, "
+                        ".usd, .usdz, or .ply: plain splats, no anchoring; '-' for standard "
+                        "output). With --output-dir: every argument is an input, a glob "
+                        "pattern or a manifest (.csv/.json)")
+    p.add_argument("-w", "--overwrite", action="store_true",
+                   help="replace existing outputs (default: refuse, exit 2)")
+    bat = p.add_argument_group("batch")
+    bat.add_argument("-o", "--output-dir", metavar="DIR",
+                     help="convert every IN into DIR (created if missing)")
+    bat.add_argument("--to", choices=TO_FORMATS,
+                     help="output format: of a batch (default glb), or of '-' (glb or ply)")
+    bat.add_argument("-j", "--jobs", type=int, metavar="N",
+                     help="local worker processes (default: the CPU count)")
+    bat.add_argument("--scheduler", metavar="ADDRESS",
+                     help="run the batch on this Dask distributed scheduler "
+                          "(e.g. tcp://host:8786) instead of local processes")
+    bat.add_argument("--skip-existing", action="store_true",
+                     help="keep existing outputs and convert only the rest")
     src = p.add_argument_group("source")
     src.add_argument("--from", dest="source", default="auto",
                      choices=("auto", *SOURCES),
@@ -79,26 +165,155 @@ def build_parser() -> argparse.ArgumentParser:
                           "{\"time\": t, \"vertices\": [[x, y, z], ...]}; vertices in the frame "
                           "and vertex order of the written anchor mesh (see spec/usd.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar and no summary")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="no progress bar, no summary and no warnings")
     p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     return p
+
+
+def _options(args: argparse.Namespace) -> ConvertOptions:
+    return ConvertOptions(mesh=args.mesh, source=args.source, deformation=args.deformation,
+                          frame_change=not args.no_frame_change, keep_order=args.keep_order,
+                          sh_degree=args.sh_degree, max_distance=args.max_distance,
+                          absolute_distance=args.absolute_distance,
+                          drop_unanchored=args.drop_unanchored, faces=args.faces,
+                          reconstruct_faces=args.reconstruct_faces,
+                          pt_path=args.pt_path, k=args.k,
+                          legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
+                          bake_poses=args.bake_poses)
+
+
+@contextlib.contextmanager
+def _warnings_silenced(quiet: bool) -> Iterator[None]:
+    """Under ``-q``: no Python warning here, nor in the processes started from here
+    (``PYTHONWARNINGS``), e.g. numba's TBB threading-layer warning."""
+    if not quiet:
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = "ignore"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved
+
+
+def _sniff_stdin(head: bytes) -> str:
+    """The suffix of what standard input holds, from its first bytes."""
+    if head.startswith(b"ply\n") or head.startswith(b"ply\r\n"):
+        return ".ply"
+    if head.startswith(b"glTF"):
+        return ".glb"
+    if not head:
+        raise UsageError("standard input is empty", "-")
+    raise UsageError("standard input is neither a PLY nor a GLB; other formats need a file "
+                     "name (their parts may be files beside them)", "-")
+
+
+def _spool_stdin(folder: str, stream: IO[bytes]) -> str:
+    """Standard input copied to ``folder/stdin.<ply|glb>``; its path."""
+    head = stream.read(4096)
+    path = os.path.join(folder, "stdin" + _sniff_stdin(head))
+    with open(path, "wb") as f:
+        f.write(head)
+        shutil.copyfileobj(stream, f, 1 << 20)
+    return path
+
+
+def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    for flag, value in (("--jobs", args.jobs), ("--scheduler", args.scheduler),
+                        ("--skip-existing", args.skip_existing or None)):
+        if value is not None:
+            parser.error(f"{flag} needs --output-dir DIR (a batch)")
+    if len(args.paths) != 2:
+        parser.error("give IN OUT (one file), or IN... --output-dir DIR (a batch)")
+    output = args.paths[1]
+    if output == "-":
+        if args.to is None:
+            raise UsageError(f"writing to standard output needs --to "
+                             f"{' or --to '.join(STDOUT_FORMATS)}", "-")
+        if args.to not in STDOUT_FORMATS:
+            raise UsageError(f"{args.to} output cannot go to standard output (it needs a file "
+                             f"name); use --to {' or --to '.join(STDOUT_FORMATS)}, or a file", "-")
+        if sys.stdout.isatty():
+            raise UsageError("refusing to write binary data to a terminal; redirect standard "
+                             "output", "-")
+    else:
+        if args.to is not None and os.path.splitext(output)[1].lower() != "." + args.to:
+            raise UsageError(f"--to {args.to} does not match the output's suffix", output)
+        if os.path.lexists(output) and not args.overwrite:
+            raise UsageError("output exists; use -w/--overwrite to replace it", output)
+
+
+def _convert_single(args: argparse.Namespace, parser: argparse.ArgumentParser,
+                    progress: Progress) -> tuple[ConvertSummary, IO[str]]:
+    """One input to one output, through temporary files for '-' (standard input/output)."""
+    _check_single(args, parser)
+    input_path, output_path = args.paths
+    if "-" not in (input_path, output_path):
+        return convert(input_path, output_path, _options(args), progress), sys.stdout
+    with tempfile.TemporaryDirectory(prefix="gsverse-convert-") as work:
+        real_in = _spool_stdin(work, sys.stdin.buffer) if input_path == "-" else input_path
+        real_out = os.path.join(work, f"stdout.{args.to}") if output_path == "-" \
+            else output_path
+        try:
+            summary = convert(real_in, real_out, _options(args), progress)
+        except GsverseError as exc:
+            if exc.path == real_in and input_path == "-":
+                raise type(exc)(exc.cause, "<stdin>") from None
+            if exc.path == real_out and output_path == "-":
+                raise type(exc)(exc.cause, "<stdout>") from None
+            raise
+        if output_path == "-":
+            with open(real_out, "rb") as f:
+                shutil.copyfileobj(f, sys.stdout.buffer, 1 << 20)
+            sys.stdout.buffer.flush()
+        summary.input = "-" if input_path == "-" else summary.input
+        summary.output = "-" if output_path == "-" else summary.output
+    return summary, (sys.stderr if output_path == "-" else sys.stdout)
+
+
+def _batch(args: argparse.Namespace, progress: Progress) -> int:
+    from ..batch import collect, plan, run_batch
+
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs must be at least 1, not {args.jobs}")
+    if args.jobs is not None and args.scheduler:
+        raise UsageError("--jobs is for local processes; a Dask cluster sets its own workers")
+    specs = collect(args.paths, _options(args))
+    todo, skipped = plan(specs, args.output_dir, args.to or "glb", overwrite=args.overwrite,
+                         skip_existing=args.skip_existing)
+    report = run_batch(todo, args.output_dir, jobs=args.jobs, scheduler=args.scheduler,
+                       overwrite=args.overwrite, quiet=args.quiet, skipped=skipped,
+                       progress=progress)
+    for asset in report.assets:
+        if asset.status == "failed":
+            print(f"{PROG}: error: {asset.error}", file=sys.stderr)
+    if report.interrupted:
+        print(f"{PROG}: interrupted; {report.count('ok')} assets converted, "
+              f"{report.count('interrupted')} not written", file=sys.stderr)
+    if args.json:
+        print(json.dumps(report.as_dict(), indent=2))
+    elif not args.quiet:
+        print("\n".join(report.lines()))
+    return report.exit_status
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    options = ConvertOptions(mesh=args.mesh, source=args.source, deformation=args.deformation,
-                             frame_change=not args.no_frame_change, keep_order=args.keep_order,
-                             sh_degree=args.sh_degree, max_distance=args.max_distance,
-                             absolute_distance=args.absolute_distance,
-                             drop_unanchored=args.drop_unanchored, faces=args.faces,
-                             reconstruct_faces=args.reconstruct_faces,
-                             pt_path=args.pt_path, k=args.k,
-                             legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
-                             bake_poses=args.bake_poses)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
+    label = args.paths[0]
     try:
-        summary = convert(args.input, args.output, options, progress)
+        with _warnings_silenced(args.quiet):
+            if args.output_dir is not None:
+                return _batch(args, progress)
+            summary, out = _convert_single(args, parser, progress)
     except UsageError as exc:
         progress.close()
         print(f"{PROG}: error: {exc}", file=sys.stderr)
@@ -109,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     except MemoryError:
         progress.close()
-        print(f"{PROG}: error: {args.input}: out of memory", file=sys.stderr)
+        print(f"{PROG}: error: {label}: out of memory", file=sys.stderr)
         return 1
     except Exception as exc:  # a bug, not bad input: still one line; GSVERSE_DEBUG=1 shows it all
         progress.close()
@@ -124,9 +339,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{PROG}: interrupted; no output written", file=sys.stderr)
         return 130
     if args.json:
-        print(json.dumps(summary.as_dict(), indent=2))
+        print(json.dumps(summary.as_dict(), indent=2), file=out)
     elif not args.quiet:
-        print("\n".join(summary.lines()))
+        print("\n".join(summary.lines()), file=out)
     return 0
 
 

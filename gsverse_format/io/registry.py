@@ -23,11 +23,12 @@ from typing import Any, Callable, Iterable
 import numpy as np
 
 from ..errors import UsageError
-from ..model import Anchoring, SplatAsset, SplatPrimitive, TriangleMesh
+from ..model import (Anchoring, KhrProperties, SplatAsset, SplatPrimitive, TriangleMesh,
+                     prim_label)
 from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
 
 __all__ = ["Frame", "FRAMES", "Z_UP_TO_GLTF", "FileFormat", "FORMATS", "register_format",
-           "find_format", "suffixes", "rotate_asset", "read_asset", "write_asset"]
+           "find_format", "suffixes", "rotate_asset", "read_asset", "write_asset", "khr_loss"]
 
 #: Z-up scene (Blender world) -> glTF +Y up: (x, y, z) -> (x, z, −y).
 Z_UP_TO_GLTF = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
@@ -56,13 +57,17 @@ FRAMES: dict[str, Frame] = {f.name: f for f in (
 class FileFormat:
     """A registered splat-asset format: ``read(path) -> SplatAsset`` in the file's own
     coordinate frame, ``write(asset, path, *, protect=(), **options)``; ``frame`` is that
-    frame: ``"gltf"`` (+Y up) or ``"3dgs"`` (the 3DGS capture frame, +Y down)."""
+    frame: ``"gltf"`` (+Y up) or ``"3dgs"`` (the 3DGS capture frame, +Y down).
+    ``keeps_khr`` says whether the format stores every :class:`~gsverse_format.model.
+    KhrProperties` (kernel, projection, sorting method, nested extensions); a format that
+    does not is only given primitives with the defaults (:func:`write_asset` refuses others)."""
 
     name: str
     suffixes: tuple[str, ...]
     read: Callable[..., SplatAsset] | None = None
     write: Callable[..., Any] | None = None
     frame: str = "gltf"
+    keeps_khr: bool = False
 
 
 #: suffix (lower case, with the dot) -> format; filled by :func:`register_format`.
@@ -71,11 +76,12 @@ FORMATS: dict[str, FileFormat] = {}
 
 def register_format(name: str, suffixes: tuple[str, ...], *,
                     read: Callable[..., SplatAsset] | None = None,
-                    write: Callable[..., Any] | None = None, frame: str = "gltf") -> None:
+                    write: Callable[..., Any] | None = None, frame: str = "gltf",
+                    keeps_khr: bool = False) -> None:
     """Register a format under its file suffixes (each format package calls this once)."""
     if frame not in FRAMES:
         raise ValueError(f"unknown frame {frame!r}; use one of {', '.join(FRAMES)}")
-    fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame)
+    fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame, keeps_khr)
     for suffix in fmt.suffixes:
         FORMATS[suffix] = fmt
 
@@ -116,7 +122,7 @@ def rotate_asset(asset: SplatAsset, rotation: np.ndarray) -> SplatAsset:
 
     return SplatAsset([SplatPrimitive(rotate_splats(p.splats, rotation),
                                       Anchoring(mesh(p.anchoring.mesh), p.anchoring.anchors)
-                                      if p.anchoring is not None else None, p.name)
+                                      if p.anchoring is not None else None, p.name, p.khr)
                        for p in asset.primitives], asset.generator)
 
 
@@ -131,6 +137,17 @@ def read_asset(path: str | os.PathLike[str], *, frame_change: bool = True) -> Sp
     return asset
 
 
+def khr_loss(props: KhrProperties, fmt: FileFormat, label: str = "the splats") -> str | None:
+    """What ``fmt`` cannot store of the ``KHR_gaussian_splatting`` properties ``props`` of a
+    primitive (one line starting with ``label``), or None."""
+    if fmt.keeps_khr or props.is_default:
+        return None
+    return (f"{label} {'has' if label != 'the splats' else 'have'} "
+            f"{', '.join(props.differences())}, which {fmt.name} output cannot store (it holds "
+            f"ellipse-kernel splats with the default projection and sorting, and no glTF "
+            f"extensions): write glTF instead")
+
+
 def write_asset(asset: SplatAsset, path: str | os.PathLike[str], *, frame_change: bool = True,
                 protect: Iterable[str | os.PathLike[str]] = (), **options: Any) -> None:
     """Write ``asset`` (in the glTF frame; taken as is with ``frame_change=False``) in the
@@ -143,6 +160,10 @@ def write_asset(asset: SplatAsset, path: str | os.PathLike[str], *, frame_change
     if "bake_poses" in options and fmt.name != "usd":
         raise UsageError(f"baked poses need a USD output ({', '.join(suffixes('write', 'usd'))})",
                          path)
+    for i, prim in enumerate(asset.primitives):
+        problem = khr_loss(prim.khr, fmt, prim_label(i, prim))
+        if problem is not None:
+            raise UsageError(problem, path)
     if frame_change and fmt.frame != "gltf":
         asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf.T)
     fmt.write(asset, path, protect=tuple(protect), **options)

@@ -45,4 +45,4 @@ __all__ = ["write_gltf", "read_gltf", "read_gltf_triangles", "asset_to_gltf", "g
 
 from ..registry import register_format  # noqa: E402  (the format registers itself last)
 
-register_format("gltf", (".glb", ".gltf"), read=read_gltf, write=write_gltf)
+register_format("gltf", (".glb", ".gltf"), read=read_gltf, write=write_gltf, keeps_khr=True)

@@ -9,6 +9,7 @@ each profile requires and the accessor formats it allows taken from
 """
 from __future__ import annotations
 
+import copy
 import math
 import os
 import re
@@ -19,8 +20,8 @@ import numpy as np
 
 from ...codes import Code
 from ...errors import FormatError, GsverseError
-from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
-                      SplatPrimitive, TriangleMesh)
+from ...model import (Anchoring, GamesAnchors, KhrProperties, LocalAnchors, SplatAsset,
+                      SplatCloud, SplatPrimitive, TriangleMesh)
 from ...vocabulary import (DEFORMATIONS, EXTENSION, FIELDS_BY_KEY, FLOAT, KHR, PROFILES, SH_C0,
                            UNSIGNED_BYTE, UNSIGNED_SHORT, required_fields)
 from .accessors import Accessors
@@ -77,6 +78,33 @@ def _sh_degree(attrs: dict[str, Any], where: str, pointer: str) -> int:
             raise gltf_error(Code.KHR_SH_INCOMPLETE, f"{where}: SH degree {level} is partially "
                              f"defined (missing COEF_{', COEF_'.join(map(str, missing))})", pointer)
     return degree
+
+
+def _khr_properties(khr: dict, where: str, pointer: str, required: list,
+                    attrs: dict) -> KhrProperties:
+    """``kernel``, ``projection``, ``sortingMethod`` (open enumerations: any string is kept;
+    an absent optional one is its default, an absent ``kernel`` the base ``ellipse``) and the
+    nested extensions other than the anchor extension, copied as JSON. A nested extension the
+    asset lists in ``extensionsRequired`` has no fallback: the data cannot be read without
+    it, and the file is refused."""
+    values: dict[str, str] = {}
+    for key, default in (("kernel", "ellipse"), ("projection", "perspective"),
+                         ("sortingMethod", "cameraDistance")):
+        value = khr.get(key, default)
+        if not isinstance(value, str):
+            raise gltf_error(Code.KHR_PROPERTY_INVALID, f"{where}: {KHR}.{key} must be a "
+                             f"string, got {value!r}", f"{pointer}/{key}")
+        values[key] = value
+    nested = khr.get("extensions") or {}
+    others = {name: copy.deepcopy(obj) for name, obj in nested.items() if name != EXTENSION}
+    for name in others:
+        if name in required:
+            raise gltf_error(Code.UNSUPPORTED_REQUIRED_EXTENSION, f"{where}: the nested "
+                             f"extension {name} is in extensionsRequired and is not supported",
+                             f"{pointer}/extensions/{pointer_token(name)}")
+    own = tuple(sorted(a for a in attrs if isinstance(a, str) and a.split(":")[0] in others))
+    return KhrProperties(values["kernel"], values["projection"], values["sortingMethod"], others,
+                         own)
 
 
 class SplatReader:
@@ -270,7 +298,9 @@ class SplatReader:
         if nested and EXTENSION in nested:
             anchoring = self.anchoring(nested[EXTENSION], count, where,
                                        f"{kpointer}/extensions/{EXTENSION}")
-        return SplatPrimitive(cloud, anchoring, name)
+        required = self.document.doc.get("extensionsRequired")
+        return SplatPrimitive(cloud, anchoring, name, _khr_properties(
+            khr, where, kpointer, required if isinstance(required, list) else [], attrs))
 
     def node_names(self) -> dict[int, str]:
         """mesh index -> the name of the first node instantiating it."""

@@ -35,7 +35,7 @@ from ...version import __version__
 from ...atomic import atomic_write
 from ...errors import GsverseError, UsageError
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
-                      TriangleMesh, check_primitive)
+                      SplatPrimitive, TriangleMesh, check_primitive)
 from ...quaternion import unit_quaternions
 from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, SH_C0, SHORT, UNSIGNED_BYTE, UNSIGNED_INT,
                            UNSIGNED_SHORT)
@@ -204,6 +204,20 @@ def _write_anchors(b: BufferBuilder, faces: int, encoded: _EncodedAnchors,
     return obj
 
 
+def _khr_object(prim: SplatPrimitive, c: SplatCloud) -> dict[str, Any]:
+    """The ``KHR_gaussian_splatting`` object of ``prim`` (without the anchor extension): its
+    kernel, colour space, projection and sorting method, and the nested extensions it
+    carries (copied as they are: :meth:`~gsverse_format.model.KhrProperties.carry_problem`
+    is checked first)."""
+    props = prim.khr
+    khr: dict[str, Any] = {"kernel": props.kernel, "colorSpace": c.color_space,
+                           "projection": props.projection, "sortingMethod": props.sorting_method}
+    if props.extensions:
+        khr["extensions"] = {name: json.loads(json.dumps(obj))
+                             for name, obj in props.extensions.items()}
+    return khr
+
+
 def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltflib.GLTF2:
     """The glTF document for ``asset``; its binary buffer is set as the binary blob.
 
@@ -220,6 +234,10 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     prims = list(asset.primitives)
     for i, prim in enumerate(prims):
         check_primitive(i, prim)
+        problem = prim.khr.carry_problem() if EXTENSION not in prim.khr.extensions else \
+            f"nested extension {EXTENSION} is written from the anchoring, not copied"
+        if problem is not None:
+            raise UsageError(f"primitive {i}: {problem}")
 
     # Anchor meshes are appended after the splat meshes, one per distinct TriangleMesh object.
     anchor_mesh_index: dict[int, int] = {}
@@ -250,8 +268,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
                 c.sh[:, k, :], FLOAT, "VEC3", target=ARRAY_BUFFER)
         attrs["COLOR_0"] = b.add(_fallback_color(c), UNSIGNED_BYTE, "VEC4", normalized=True,
                                  target=ARRAY_BUFFER)
-        khr: dict[str, Any] = {"kernel": "ellipse", "colorSpace": c.color_space,
-                               "projection": "perspective", "sortingMethod": "cameraDistance"}
+        khr = _khr_object(prim, c)
         if anchoring is not None and encoded is not None:
             mesh = anchoring.mesh
             m = anchor_mesh_index[id(mesh)]
@@ -263,14 +280,15 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
                     attributes=pygltflib.Attributes(POSITION=pos), indices=idx,
                     mode=TRIANGLES)], weights=None,
                     name=f"{prim.name} anchor mesh" if prim.name else "anchor mesh")
-            khr["extensions"] = {EXTENSION: _write_anchors(b, mesh.face_count, encoded, c, m,
-                                                           attrs[SCALE])}
+            khr.setdefault("extensions", {})[EXTENSION] = _write_anchors(
+                b, mesh.face_count, encoded, c, m, attrs[SCALE])
         primitive = pygltflib.Primitive(attributes=pygltflib.Attributes(**attrs),
                                         mode=POINTS, extensions={KHR: khr})
         meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
         nodes.append(pygltflib.Node(mesh=i, name=prim.name, children=None))
 
-    used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else [])
+    carried = sorted({name for prim in prims for name in prim.khr.extensions})
+    used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried
     blob = b.finish()
     gltf = pygltflib.GLTF2(
         asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}"),

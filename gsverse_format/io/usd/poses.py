@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...errors import GsverseError, UsageError
+from ...errors import FormatError, GsverseError, UsageError
 
 __all__ = ["BakedPoses", "load_poses"]
 
@@ -58,7 +58,9 @@ def load_poses(path: str | os.PathLike) -> BakedPoses:
       object ``{"timeCodesPerSecond": 24, "poses": [...]}`` with such a list.
 
     Times are USD time codes; vertices are in the frame and vertex order of the anchor mesh as
-    written (see :class:`BakedPoses`). Raises :class:`UsageError` naming ``path``.
+    written (see :class:`BakedPoses`). Raises :class:`FormatError` naming ``path`` for what the
+    file holds (unreadable, missing arrays, poses :class:`BakedPoses` refuses), and
+    :class:`UsageError` for a suffix other than ``.npz``/``.json``.
     """
     spath = os.fspath(path)
     ext = os.path.splitext(spath)[1].lower()
@@ -67,7 +69,7 @@ def load_poses(path: str | os.PathLike) -> BakedPoses:
             with np.load(spath, allow_pickle=False) as data:
                 missing = [k for k in ("vertices", "times") if k not in data.files]
                 if missing:
-                    raise UsageError(f"poses .npz lacks array(s) {', '.join(missing)} "
+                    raise FormatError(f"poses .npz lacks array(s) {', '.join(missing)} "
                                      f"(needs vertices (P, V, 3) and times (P,))")
                 fps = float(data["time_codes_per_second"]) if "time_codes_per_second" in \
                     data.files else 24.0
@@ -79,21 +81,23 @@ def load_poses(path: str | os.PathLike) -> BakedPoses:
             if isinstance(doc, dict):
                 fps = doc.get("timeCodesPerSecond", 24.0)
                 if not isinstance(fps, (int, float)) or isinstance(fps, bool):
-                    raise UsageError("poses JSON: timeCodesPerSecond must be a number")
+                    raise FormatError("poses JSON: timeCodesPerSecond must be a number")
                 doc = doc.get("poses")
             if not isinstance(doc, list) or not all(
                     isinstance(p, dict) and "time" in p and "vertices" in p for p in doc):
-                raise UsageError('poses JSON must be a list of {"time": t, "vertices": '
+                raise FormatError('poses JSON must be a list of {"time": t, "vertices": '
                                  '[[x, y, z], ...]} objects')
             try:
                 times = np.array([p["time"] for p in doc], dtype=np.float64)
                 vertices = np.array([p["vertices"] for p in doc], dtype=np.float32)
             except (TypeError, ValueError):
-                raise UsageError("poses JSON: every time must be a number and every pose the "
+                raise FormatError("poses JSON: every time must be a number and every pose the "
                                  "same number of [x, y, z] vertices") from None
             return BakedPoses(times, vertices, fps)
+    except UsageError as err:   # BakedPoses refuses what the file holds
+        raise FormatError(err.cause, spath) from None
     except GsverseError as err:
         raise err.with_path(spath) from None
     except (OSError, ValueError, UnicodeDecodeError) as err:
-        raise UsageError(f"cannot read poses: {' '.join(str(err).split())}", spath) from None
+        raise FormatError(f"cannot read poses: {' '.join(str(err).split())}", spath) from None
     raise UsageError(f"poses must be a .npz or .json file, not {ext or '(no extension)'}", spath)
