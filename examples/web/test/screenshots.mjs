@@ -108,10 +108,27 @@ try {
     const info = await page.evaluate(() => /** @type {any} */ (window).gsverseDemo.ready);
     process.stdout.write(`demo: ${info.asset}, ${info.splats.anchored} anchored splats, backend ${info.backend}\n`);
 
-    /** @param {string} name */
+    /** The frame once the splats are drawn and stable: the engine sorts splats in a worker and
+     * may present a few frames before the first sorted draw, more so on a loaded machine; two
+     * consecutive captures with the same non-empty silhouette (or 60 s) end the wait.
+     * @param {string} name */
     const shot = async (name) => {
-        const png = await page.screenshot({ path: path.join(outDir, `${name}.png`) });
-        return decodePng(png);
+        const deadline = Date.now() + 60000;
+        /** @type {any} */
+        let prev = null;
+        for (;;) {
+            const png = await page.screenshot();
+            const img = decodePng(png);
+            const s = silhouette(img);
+            const stable = prev !== null && s.fraction > 0 && s.area === prev.area
+                && s.x.size === prev.x.size && s.y.size === prev.y.size;
+            if (stable || Date.now() > deadline) {
+                fs.writeFileSync(path.join(outDir, `${name}.png`), png);
+                return img;
+            }
+            prev = s;
+            await page.waitForTimeout(250);
+        }
     };
     /** @param {string} expr @param {any[]} a */
     const call = (expr, ...a) => page.evaluate((/** @type {[string, any[]]} */ [e, x]) => /** @type {any} */ (window).gsverseDemo[e](...x), [expr, a]);
