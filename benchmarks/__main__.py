@@ -9,7 +9,8 @@ nearest-triangle binding against Open3D and trimesh (``benchmarks/binding.py``, 
 separate process), ``gsverse-convert`` end to end against plain reading and writing,
 validation time (``benchmarks/validate.py``, a separate process), peak memory, accuracy against
 analytic deformations across profiles, anchor resolutions and quantizations with the cost of
-each point, and the stretch comparison with a VR-GS-style cage.
+each point, the stretch comparison with a VR-GS-style cage, and the CPU renderer's speed with
+the remap's accuracy in image space (PSNR/SSIM, ``benchmarks/render.py``).
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-SECTIONS = ("remap", "binding", "convert", "validate", "accuracy")
+SECTIONS = ("remap", "binding", "convert", "validate", "accuracy", "render")
 HERE = Path(__file__).resolve().parent
 
 
@@ -108,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
         from . import accuracy
 
         res["accuracy"] = accuracy.run(quick, log)
+    if "render" in sections:
+        from . import render
+
+        res["render"] = render.run(quick, log)
     res["self_peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     res["meta"] = _meta(argv, quick)
     res["meta"]["seconds"] = time.perf_counter() - t0

@@ -525,6 +525,10 @@ def write_report(res: dict, out: Path) -> Path:
     if res.get("accuracy"):
         L += _acc_md(res["accuracy"], plots)
         L += _stretch_md(res["accuracy"]["stretch"], plots)
+    if res.get("render"):
+        from .render import markdown as render_md
+
+        L += render_md(res["render"]) + [""]
     path = out / "report.md"
     path.write_text("\n".join(L) + "\n", encoding="utf-8")
     (out / "results.json").write_text(json.dumps(res, indent=1, default=_json_default), encoding="utf-8")

@@ -105,6 +105,8 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
     "frame_change": ("frame_change", _as_bool, False),
     "no_frame_change": ("frame_change", lambda v: not _as_bool(v), False),
     "bake_poses": ("bake_poses", _as_str, True),
+    "watertight": ("watertight", _as_bool, False),
+    "collider": ("collider", _as_str, False),
 }
 
 

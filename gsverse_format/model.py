@@ -30,6 +30,7 @@ __all__ = [
     "KhrProperties",
     "SplatCloud",
     "TriangleMesh",
+    "Collider",
     "LocalAnchors",
     "GamesAnchors",
     "Anchors",
@@ -359,11 +360,25 @@ class SplatPrimitive:
 
 
 @dataclass
+class Collider:
+    """A collision mesh for the anchor mesh ``anchor`` (the same object as an anchored
+    primitive's ``anchoring.mesh``): ``kind`` says how it was made (``"hull"``: its convex
+    hull). Writers store it beside the anchor mesh, marked as its collider (spec/README.md
+    §Colliders); it is never drawn."""
+
+    mesh: TriangleMesh
+    anchor: TriangleMesh
+    kind: str = "hull"
+
+
+@dataclass
 class SplatAsset:
-    """What one file holds: splat primitives, anchored or plain (static)."""
+    """What one file holds: splat primitives, anchored or plain (static), and the colliders
+    of its anchor meshes."""
 
     primitives: list[SplatPrimitive] = field(default_factory=list)
     generator: str | None = None
+    colliders: list[Collider] = field(default_factory=list)
 
     @property
     def anchored(self) -> list[SplatPrimitive]:

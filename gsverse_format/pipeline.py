@@ -45,6 +45,7 @@ from .model import (Anchoring, DeformationLaw, KhrProperties, LocalAnchors, Spla
                     SplatCloud, SplatPrimitive, TriangleMesh, prim_label, splat_problem)
 from .nearest import closest_points_on_triangles
 from .progress import Progress
+from .scene import anchor_scene, finish_physics, prepare_mesh, read_scene_meshes
 from .transform import rotate_mesh, rotate_splats
 
 __all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "to_gltf"]
@@ -69,7 +70,10 @@ class ConvertOptions:
     relative to the anchor mesh's bounding-box diagonal unless ``absolute_distance``; ``None``
     anchors every splat. ``plain`` converts formats only (no anchoring is added or kept).
     ``bake_poses`` names a poses file (:func:`gsverse_format.io.usd.load_poses`) baked into
-    USD time samples (USD output only).
+    USD time samples (USD output only). ``meshes``, two or more, makes a scene of several
+    objects (:mod:`gsverse_format.scene`; ``max_distance`` is then relative to each object's
+    mesh); ``watertight`` makes each anchor mesh a closed 2-manifold before binding;
+    ``collider`` (``"hull"``) adds a collision mesh per anchor mesh.
     """
 
     mesh: str | None = None
@@ -88,6 +92,9 @@ class ConvertOptions:
     legacy_trellis_frame: bool = False
     plain: bool = False
     bake_poses: str | None = None
+    meshes: list[str] | None = None
+    watertight: bool = False
+    collider: str | None = None
 
 
 @dataclass
@@ -110,6 +117,8 @@ class ConvertSummary:
     max_distance: float | None = None
     check: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    objects: list[dict[str, Any]] = field(default_factory=list)
+    anchor_meshes: list[dict[str, Any]] = field(default_factory=list)
     output_bytes: int = 0
     seconds: float = 0.0
 
@@ -132,6 +141,21 @@ class ConvertSummary:
         if self.max_distance is not None:
             out.append(f"  static     splats farther than {self.max_distance:.3g} from the mesh "
                        f"{'dropped' if self.dropped else 'kept as plain splats'}")
+        for obj in self.objects:
+            d = obj["distance"]
+            dist = (f", distance p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, max {d['max']:.3g}"
+                    if d else "")
+            limit = f", within {obj['max_distance']:.3g}" if obj["max_distance"] is not None \
+                else ""
+            out.append(f"  object     {obj['name']}: {obj['splats']} splats, {obj['faces']} "
+                       f"faces{dist}{limit}")
+        for m in self.anchor_meshes:
+            state = "a closed 2-manifold" if m["closed_manifold"] else (
+                f"not a closed 2-manifold ({m['boundary_edges']} boundary, "
+                f"{m['nonmanifold_edges']} non-manifold edges)")
+            collider = f"; {m['collider']['kind']} collider, {m['collider']['faces']} faces" \
+                if m["collider"] else ""
+            out.append(f"  manifold   {m['name']} anchor mesh: {state}{collider}")
         for note in self.notes:
             out.append(f"  note       {note}")
         out.append(f"  wrote      {self.output_bytes} bytes in {self.seconds:.2f} s")
@@ -155,13 +179,18 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
         raise UsageError(f"--max-distance must be >= 0, not {options.max_distance}")
     if options.drop_unanchored and options.max_distance is None:
         raise UsageError("--drop-unanchored needs --max-distance")
+    if options.collider is not None and options.collider not in ("hull",):
+        raise UsageError(f"--collider must be hull, not {options.collider!r}")
+    if options.plain and (options.meshes or options.watertight or options.collider):
+        raise UsageError("--plain writes splats without anchoring: drop --mesh, --watertight "
+                         "and --collider, or --plain")
     for flag, value in (("--faces", options.faces),
                         ("--reconstruct-faces", options.reconstruct_faces)):
         if value is not None and value < 4:
             raise UsageError(f"{flag} must be at least 4, not {value}")
     if not os.path.exists(input_path):
         raise UsageError("file not found", input_path)
-    for p in (options.mesh, options.pt_path, options.bake_poses):
+    for p in (options.mesh, options.pt_path, options.bake_poses, *(options.meshes or ())):
         if p is not None and not os.path.isfile(p):
             raise UsageError("file not found", p)
     folder = os.path.dirname(os.path.abspath(output_path))
@@ -190,17 +219,25 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
             progress: Progress | None = None) -> ConvertSummary:
     """Convert ``input_path`` (any supported source) to ``output_path`` (any writable format)."""
     options = options or ConvertOptions()
+    if options.meshes is not None:   # several objects; one is a plain --mesh
+        if options.mesh is not None and options.mesh not in options.meshes:
+            raise UsageError("give the anchor meshes either as mesh or as meshes, not both")
+        options = replace(options, mesh=options.meshes[0] if options.meshes else None,
+                          meshes=list(options.meshes) if len(options.meshes) > 1 else None)
     progress = progress or Progress(enabled=False)
     start = time.perf_counter()
     input_path, output_path = os.fspath(input_path), os.fspath(output_path)
     summary = ConvertSummary(input_path, output_path)
     _check_options(input_path, output_path, options)
-    protect = tuple(p for p in (input_path, options.mesh, options.pt_path, options.bake_poses)
-                    if p is not None)
+    protect = tuple(p for p in (input_path, options.mesh, options.pt_path, options.bake_poses,
+                                *(options.meshes or ())) if p is not None)
 
     if _format_only(input_path, output_path, options):
         if options.mesh is not None:
             raise UsageError("--plain writes splats without anchoring: drop --mesh or --plain")
+        if options.watertight or options.collider is not None:
+            raise UsageError("--watertight and --collider act on the anchor mesh the splats are "
+                             "bound to: give --mesh (or a source that has or reconstructs one)")
         progress.stage(f"reading {os.path.basename(input_path)}")
         in_format = find_format(input_path, "read")
         summary.source = _FORMAT_SOURCE.get(in_format.name, in_format.name)
@@ -232,12 +269,26 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     summary.notes.extend(notes)
     reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
         else options.faces
-    result = load_source(source, input_path, options.mesh, src_options,
-                         frame_change=options.frame_change, reconstruct_faces=reconstruct_faces)
+    if options.meshes:
+        result = load_source(source, input_path, options.mesh, src_options, frame_change=False)
+        more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change)
+        result = to_gltf(result) if options.frame_change else result
+    else:
+        result = load_source(source, input_path, options.mesh, src_options,
+                             frame_change=options.frame_change,
+                             reconstruct_faces=reconstruct_faces)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
     _require_writable_khr([("the splats", result.khr)], input_path, output_path)
-    asset = _anchor(result, options, progress, summary)
+    if options.meshes:
+        if result.mesh is None:
+            raise UsageError(f"the {source} source took no mesh from --mesh; several --mesh "
+                             f"need a source of free splats (3dgs, khr)", input_path)
+        asset = anchor_scene(result, [result.mesh, *more], options.meshes, options, progress,
+                             summary)
+    else:
+        asset = _anchor(result, options, progress, summary)
+    finish_physics(asset, options, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
 
@@ -405,6 +456,13 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         if anchors is not None:
             summary.notes.append("--faces: the source's exact binding was replaced by nearest-"
                                  "triangle binding to the decimated mesh (local profile)")
+            anchors = None
+    repaired = prepare_mesh(mesh, options, summary, options.mesh or summary.input)
+    if repaired is not mesh:
+        mesh = repaired
+        if anchors is not None:
+            summary.notes.append("--watertight: the source's exact binding was replaced by "
+                                 "nearest-triangle binding to the repaired mesh (local profile)")
             anchors = None
     if anchors is None:
         progress.stage("binding to the nearest triangles")

@@ -24,7 +24,8 @@ def test_quick_benchmark_writes_the_report(tmp_path):
     report = (out / "report.md").read_text(encoding="utf-8")
     for heading in ("## Remap speed", "## Binding", "## `gsverse-convert` end to end", "## Validation",
                     "## Peak memory", "## Accuracy against analytic deformations",
-                    "## Stretch: our profiles against a VR-GS-style cage"):
+                    "## Stretch: our profiles against a VR-GS-style cage",
+                    "## Rendering: speed and accuracy in image space"):
         assert heading in report
     results = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert results["remap"]["rows"] and results["accuracy"]["rows"]

@@ -182,6 +182,14 @@ def _(folder):
         asset, vertices=[[-0.5, 2, 0], [0.5, 2, 0], [0, 2.0001, 0]], faces=[[n, n + 1, n + 2]])))
 
 
+@usd_trigger("ANCHOR_MESH_NOT_MANIFOLD")
+def _(folder):
+    asset = local_asset(24)   # a lone triangle beside the closed mesh: three boundary edges
+    n = len(asset.primitives[0].anchoring.mesh.vertices)
+    return Trigger(_write(folder, "open.usda", _with_mesh(
+        asset, vertices=[[3, 0, 0], [4, 0, 0], [3, 1, 0]], faces=[[n, n + 1, n + 2]])))
+
+
 @usd_trigger("MESH_DUPLICATE_TRIANGLES")
 def _(folder):
     asset = local_asset(24)

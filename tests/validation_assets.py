@@ -612,6 +612,15 @@ def _(folder):
     return _edited(folder, "drawn-twice.glb", edit)
 
 
+@trigger("ANCHOR_MESH_NOT_MANIFOLD")
+def _(folder):
+    # A lone triangle beside the closed anchor mesh: its three edges are boundary edges.
+    def edit(d):
+        v = d.doc["accessors"][d.anchor_prim()["attributes"]["POSITION"]]["count"]
+        d.extend_anchor_mesh(vertices=[[3, 0, 0], [4, 0, 0], [3, 1, 0]], faces=[v, v + 1, v + 2])
+    return _edited(folder, "open.glb", edit)
+
+
 @trigger("MESH_DEGENERATE_TRIANGLES")
 def _(folder):
     return _edited(folder, "degenerate.glb", lambda d: d.extend_anchor_mesh(faces=[0, 1, 1]))

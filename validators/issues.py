@@ -291,6 +291,9 @@ _ENTRIES = [
        "the anchor mesh (the spec says MUST NOT): each instance may carry its own skin or morph "
        "weights, so which one drives the splats is ambiguous; readers refuse the asset.",
        "/nodes/{n}/mesh", "Instantiate the anchor mesh with at most one node (preferably none)."),
+    _c(Code.ANCHOR_MESH_NOT_MANIFOLD, I, "Anchor mesh", "The anchor mesh is not a closed "
+       "2-manifold (after merging equal vertices): valid, but soft bodies and colliders need one.",
+       "/meshes/{m}/primitives/{p}", "Convert with --watertight when physics needs it."),
     _c(Code.MESH_DEGENERATE_TRIANGLES, W, "Anchor mesh", "Triangles of the anchor mesh are "
        "degenerate at rest by the spec's rule (a ≤ ε_deg ℓ², ε_deg = 1e-6); count and "
        "examples. (Splats bound to them are ANCHOR_BOUND_TO_DEGENERATE.)",
@@ -506,6 +509,7 @@ _USD_SHARED = {
     Code.MESH_DEGENERATE_TRIANGLES: ("{mesh}", None),
     Code.MESH_SLIVER_TRIANGLES: ("{mesh}", None),
     Code.MESH_DUPLICATE_TRIANGLES: ("{mesh}", None),
+    Code.ANCHOR_MESH_NOT_MANIFOLD: ("{mesh}", None),
     Code.ANCHOR_FACE_OUT_OF_RANGE: ("{prim}.gsverse:anchor:faceIndices", None),
     Code.ANCHOR_BOUND_TO_DEGENERATE: ("{prim}.gsverse:anchor:faceIndices", None),
     Code.ANCHOR_NOT_SORTED: ("{prim}.gsverse:anchor:faceIndices", None),
@@ -542,12 +546,10 @@ class Finding:
         (``pointer`` for JSON pointers, ``usdPath`` for USD paths)."""
         out: dict[str, Any] = {"code": str(self.code), "severity": self.severity.label,
                                "message": self.message}
-        if self.pointer is not None:
-            out[location_key] = self.pointer
-        if self.offset is not None:
-            out["offset"] = self.offset
-        if self.count is not None:
-            out["count"] = self.count
+        for key, value in ((location_key, self.pointer), ("offset", self.offset),
+                           ("count", self.count)):
+            if value is not None:
+                out[key] = value
         if self.examples:
             out["examples"] = self.examples
         return out

@@ -17,6 +17,7 @@ import numpy as np
 
 from gsverse_format.codes import Code
 from gsverse_format.frames import EPS_DEGENERATE, degenerate_mask
+from gsverse_format.manifold import manifold_report
 from gsverse_format.model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors,
                                   TriangleMesh)
 from gsverse_format.remap_reference import covariance_entries, iter_moments
@@ -162,7 +163,19 @@ def check_triangles(ctx: CheckContext, mesh: TriangleMesh, location: str) -> Anc
                        pointer=location, count=n_thin,
                        examples=ctx.examples(faces, face=np.arange(f), areaRatio=ratio))
     _check_duplicates(ctx, mesh, location)
+    _check_manifold(ctx, mesh, location)
     return AnchorMesh(mesh, degenerate, *mesh_extent(mesh))
+
+
+def _check_manifold(ctx: CheckContext, mesh: TriangleMesh, location: str) -> None:
+    """ANCHOR_MESH_NOT_MANIFOLD (information: open anchor meshes are valid)."""
+    if mesh.face_count == 0:
+        return
+    report = manifold_report(mesh)
+    if not report.closed_manifold:
+        ctx.issues.add(Code.ANCHOR_MESH_NOT_MANIFOLD, f"the anchor mesh is not a closed "
+                       f"2-manifold: {report.why_not()} (soft bodies and mesh colliders need "
+                       f"one; gsverse-convert --watertight repairs it)", pointer=location)
 
 
 def _check_duplicates(ctx: CheckContext, mesh: TriangleMesh, location: str) -> None:

@@ -62,7 +62,8 @@ manifests:
   CSV with a header row, or JSON: a list of objects (or {"assets": [...]}; a bare string is an
   input). Keys: input (required), output (relative to DIR), mesh, from, pt, k, deformation,
   max-distance, absolute-distance, drop-unanchored, faces, reconstruct-faces, sh-degree,
-  keep-order, plain, legacy-trellis-frame, no-frame-change, bake-poses (dashes or
+  keep-order, plain, legacy-trellis-frame, no-frame-change, bake-poses, watertight,
+  collider (one mesh per asset; dashes or
   underscores). Paths are relative to the manifest's folder; booleans true/false, yes/no or
   1/0; an empty cell or a missing key takes the command line's value. Example CSV:
       input,mesh,output,faces
@@ -75,6 +76,21 @@ Dask (--scheduler ADDRESS):
   stays bounded by one asset when workers run one task at a time: start them with
   'dask worker ADDRESS --nthreads 1', or with '--resources asset=1' (each task then asks for
   one unit of "asset"); a warning says when a worker could run several assets at once.
+
+scenes (several --mesh):
+  gsverse-convert scene.ply scene.glb --mesh fox.obj --mesh chair.glb --max-distance 0.02
+  anchors each splat to the nearest triangle over all meshes (a tie goes to the mesh given
+  first) when it lies within --max-distance of that object: relative to the bounding-box
+  diagonal of that object's mesh (as for one --mesh), or in scene units with
+  --absolute-distance; without --max-distance every splat is anchored. Each object becomes
+  an anchored primitive and node named after its mesh file's stem ("fox"), the rest one plain
+  static primitive ("scene static"). The summary has one "object" line (--json: "objects")
+  per mesh: splats, faces, distance percentiles. Same for USD outputs.
+
+physics-ready anchor meshes:
+  the summary says whether each anchor mesh is a closed 2-manifold ("manifold" lines, --json
+  "anchor_meshes"); --watertight repairs it before binding, --collider hull adds its convex
+  hull as a collision mesh (spec/README.md, "Colliders").
 
 standard input and output ('-'):
   IN '-' reads a PLY or a GLB from standard input (recognised by its first bytes; other
@@ -120,9 +136,13 @@ def build_parser() -> argparse.ArgumentParser:
     src.add_argument("--from", dest="source", default="auto",
                      choices=("auto", *SOURCES),
                      help="which tool made the input (default: detect where unambiguous)")
-    src.add_argument("--mesh", help="anchor triangle mesh (.obj, .ply, .stl, .off, .glb, .gltf) in the "
-                                    "same frame as the splats; without it a 3DGS PLY gets a mesh "
-                                    "reconstructed from its splats (see --reconstruct-faces)")
+    src.add_argument("--mesh", action="append",
+                     help="anchor triangle mesh (.obj, .ply, .stl, .off, .glb, .gltf) in the "
+                          "same frame as the splats; without it a 3DGS PLY gets a mesh "
+                          "reconstructed from its splats (see --reconstruct-faces). Repeat it "
+                          "for a scene of several objects: each splat is anchored to the "
+                          "nearest object's mesh, each object is its own primitive and node "
+                          "named after its mesh file (see 'scenes' below)")
     src.add_argument("--pt", dest="pt_path", help="PyTorch checkpoint: SuGaR refined .pt or GaMeS "
                                                   "model_params.pt (needs PyTorch)")
     src.add_argument("--k", type=int, help="splats per face (SuGaR, GaMeS), overriding detection")
@@ -154,6 +174,13 @@ def build_parser() -> argparse.ArgumentParser:
     anc.add_argument("--keep-order", action="store_true",
                      help="keep the input splat order (default: sort anchored splats by face, "
                           "which roughly halves per-frame remap time)")
+    anc.add_argument("--watertight", action="store_true",
+                     help="make each anchor mesh a closed 2-manifold (merge duplicate vertices, "
+                          "close holes, remove faces on non-manifold edges) before binding the "
+                          "splats to it; an error if that fails")
+    anc.add_argument("--collider", choices=("hull",),
+                     help="also write a collision mesh for each anchor mesh: hull = its convex "
+                          "hull (glTF: a mesh marked extras.gsverse.collider, drawn by no node)")
     anc.add_argument("--plain", action="store_true",
                      help="format conversion only: write plain KHR splats without anchoring")
     usd = p.add_argument_group("USD output")
@@ -172,7 +199,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _options(args: argparse.Namespace) -> ConvertOptions:
-    return ConvertOptions(mesh=args.mesh, source=args.source, deformation=args.deformation,
+    meshes = args.mesh or []
+    return ConvertOptions(mesh=meshes[0] if len(meshes) == 1 else None,
+                          meshes=meshes if len(meshes) > 1 else None,
+                          watertight=args.watertight, collider=args.collider,
+                          source=args.source, deformation=args.deformation,
                           frame_change=not args.no_frame_change, keep_order=args.keep_order,
                           sh_degree=args.sh_degree, max_distance=args.max_distance,
                           absolute_distance=args.absolute_distance,

@@ -16,6 +16,8 @@ from numpy.typing import ArrayLike
 
 from ..frames import local_frames
 from ..model import Anchors, DeformationLaw, GamesAnchors, LocalAnchors, TriangleMesh
+from ..poses.analytic import (bend, random_quaternions, random_rotation, shake, stretch,
+                               stretch_along, taper, twist)
 from .skin import tube
 
 __all__ = ["LAWS", "Pose", "RemapCase", "case_rng", "law_id", "law_tags", "random_quaternions",
@@ -78,21 +80,6 @@ def law_id(profile: str, law: str | None) -> str:
 def law_tags(profile: str, law: str | None) -> list[str]:
     """The profile and deformation tags of a case."""
     return [f"profile:{profile}"] + ([f"deformation:{law}"] if law else [])
-
-
-def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` uniformly random unit quaternions (x, y, z, w), w >= 0."""
-    q = rng.normal(size=(n, 4))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    return np.where(q[:, 3:4] < 0, -q, q)
-
-
-def random_rotation(rng: np.random.Generator) -> np.ndarray:
-    """A uniformly random 3x3 rotation matrix."""
-    x, y, z, w = random_quaternions(rng, 1)[0]
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 def face_sizes(mesh: TriangleMesh) -> np.ndarray:
@@ -177,68 +164,7 @@ def make_case(case_id: str, description: str, tags: list[str], mesh: TriangleMes
 
 
 # --------------------------------------------------------------------------- deformations
-
-def stretch(v: np.ndarray, factors, center) -> np.ndarray:
-    """Scale about ``center`` by per-axis ``factors``."""
-    c = np.asarray(center, dtype=np.float64)
-    return c + (v - c) * np.asarray(factors, dtype=np.float64)
-
-
-def stretch_along(v: np.ndarray, direction, factor: float, center) -> np.ndarray:
-    """Scale by ``factor`` along unit ``direction`` about ``center``."""
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / np.linalg.norm(d)
-    rel = v - np.asarray(center, dtype=np.float64)
-    along = rel @ d
-    return v + (factor - 1.0) * along[:, None] * d[None, :]
-
-
-def taper(v: np.ndarray, center, y0: float, y1: float, top: float) -> np.ndarray:
-    """Scale x and z about the +Y axis through ``center`` by 1 → ``top`` from y0 to y1."""
-    c = np.asarray(center, dtype=np.float64)
-    s = 1.0 + (top - 1.0) * np.clip((v[:, 1] - y0) / (y1 - y0), 0.0, 1.0)
-    out = v.copy()
-    out[:, 0] = c[0] + (v[:, 0] - c[0]) * s
-    out[:, 2] = c[2] + (v[:, 2] - c[2]) * s
-    return out
-
-
-def twist(v: np.ndarray, degrees: float, center, y0: float, y1: float) -> np.ndarray:
-    """Rotate about the +Y axis through ``center`` by an angle growing linearly from 0 at
-    y0 to ``degrees`` at y1."""
-    c = np.asarray(center, dtype=np.float64)
-    a = np.radians(degrees) * (v[:, 1] - y0) / (y1 - y0)
-    x, z = v[:, 0] - c[0], v[:, 2] - c[2]
-    out = v.copy()
-    out[:, 0] = c[0] + np.cos(a) * x + np.sin(a) * z
-    out[:, 2] = c[2] - np.sin(a) * x + np.cos(a) * z
-    return out
-
-
-def bend(v: np.ndarray, degrees: float, center, y0: float, y1: float) -> np.ndarray:
-    """Bend the +Y axis through ``center`` (from y0 to y1) into a circular arc of total angle
-    ``degrees`` in the XY plane, keeping arc length on the axis."""
-    c = np.asarray(center, dtype=np.float64)
-    theta_total = np.radians(degrees)
-    radius = (y1 - y0) / theta_total
-    s = v[:, 1] - y0
-    xr = v[:, 0] - c[0]
-    theta = s / radius
-    out = v.copy()
-    out[:, 0] = c[0] - radius + (radius + xr) * np.cos(theta)
-    out[:, 1] = y0 + (radius + xr) * np.sin(theta)
-    return out
-
-
-def shake(v: np.ndarray, rng: np.random.Generator, center, amplitude: float,
-          move: float) -> np.ndarray:
-    """A random rigid motion about ``center`` (translation up to ``move``) plus independent
-    per-vertex noise of standard deviation ``amplitude``."""
-    c = np.asarray(center, dtype=np.float64)
-    r = random_rotation(rng)
-    t = rng.uniform(-move, move, 3)
-    return (v - c) @ r.T + c + t + rng.normal(0.0, amplitude, v.shape)
-
+# stretch, stretch_along, taper, twist, bend and shake live in gsverse_format.poses.analytic
 
 def rest_pose(mesh: TriangleMesh) -> Pose:
     """Pose 0 of every case: the rest mesh."""

@@ -6,7 +6,8 @@ chain. :func:`sample_skin` evaluates such an asset at a time ``t`` with glTF sem
 
 * node local transform = ``matrix``, or T·R·S from ``translation``/``rotation``/``scale``, with
   animated paths replaced by the sampled channel values (``LINEAR``: lerp for translation and
-  scale, slerp for rotation; ``STEP``: the previous key; times outside the keys clamp);
+  scale, slerp for rotation; ``STEP``: the previous key; ``CUBICSPLINE``; times outside the
+  keys clamp);
 * global transform = product of the local transforms from the scene root down;
 * joint matrix ``J_i = global(joint_i) · inverseBindMatrix_i``;
 * skinned vertex ``v' = Σ_k w_k J_{j_k} · v`` (``JOINTS_0``/``WEIGHTS_0``). As glTF prescribes,
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..poses.gltf_animation import GltfAnimation, Instance
 from .glb import (FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT, BufferBuilder, accessor_bytes, pack_glb,
                   unpack_glb)
 
@@ -137,24 +139,6 @@ def skinned_tube(rings: int = 7, segments: int = 8, radius: float = 0.2,
 
 # ------------------------------------------------------------------------------ sampling
 
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    x, y, z, w = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _slerp(a: np.ndarray, b: np.ndarray, s: float) -> np.ndarray:
-    dot = float(np.dot(a, b))
-    if dot < 0.0:  # shortest path
-        b, dot = -b, -dot
-    if dot > 0.9995:
-        q = a + s * (b - a)
-        return q / np.linalg.norm(q)
-    theta = np.arccos(dot)
-    return (np.sin((1 - s) * theta) * a + np.sin(s * theta) * b) / np.sin(theta)
-
-
 def _float_accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
     acc = doc["accessors"][index]
     raw = accessor_bytes(doc, blob, index).astype(np.float64)
@@ -164,74 +148,17 @@ def _float_accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
     return raw
 
 
-def _sample_channel(doc: dict, blob: bytes, sampler: dict, path: str, t: float) -> np.ndarray:
-    times = _float_accessor(doc, blob, sampler["input"])[:, 0]
-    values = _float_accessor(doc, blob, sampler["output"])
-    mode = sampler.get("interpolation", "LINEAR")
-    if mode not in ("LINEAR", "STEP"):
-        raise ValueError(f"interpolation {mode!r} is not supported by this sampler")
-    if t <= times[0]:
-        return values[0]
-    if t >= times[-1]:
-        return values[-1]
-    k = int(np.searchsorted(times, t, side="right") - 1)
-    if mode == "STEP":
-        return values[k]
-    s = (t - times[k]) / (times[k + 1] - times[k])
-    if path == "rotation":
-        return _slerp(values[k], values[k + 1], s)
-    return (1.0 - s) * values[k] + s * values[k + 1]
-
-
-def _local_matrix(node: dict, animated: dict[str, np.ndarray]) -> np.ndarray:
-    if "matrix" in node and not animated:
-        return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
-    t = np.asarray(animated.get("translation", node.get("translation", [0, 0, 0])), np.float64)
-    r = np.asarray(animated.get("rotation", node.get("rotation", [0, 0, 0, 1])), np.float64)
-    s = np.asarray(animated.get("scale", node.get("scale", [1, 1, 1])), np.float64)
-    m = np.eye(4)
-    m[:3, :3] = _quat_matrix(r) * s[None, :]
-    m[:3, 3] = t
-    return m
-
-
 def sample_skin(glb: bytes, t: float, *, animation: int = 0, node: int | None = None) -> np.ndarray:
     """Skinned vertex positions (V, 3) float64 of the first skinned node at time ``t`` (s).
 
     ``node`` picks the skinned node (default: the first node with both ``mesh`` and ``skin``).
-    Linear blend skinning with glTF semantics (see the module docstring).
+    Linear blend skinning with glTF semantics (see the module docstring), evaluated by
+    :class:`gsverse_format.poses.GltfAnimation` (primitive 0 of the node's mesh).
     """
     doc, blob = unpack_glb(glb)
     nodes = doc["nodes"]
-    anim = doc.get("animations", [])[animation] if doc.get("animations") else {"channels": []}
-    overrides: dict[int, dict[str, np.ndarray]] = {}
-    for ch in anim["channels"]:
-        target = ch["target"]
-        value = _sample_channel(doc, blob, anim["samplers"][ch["sampler"]], target["path"], t)
-        overrides.setdefault(target["node"], {})[target["path"]] = value
-
-    world: dict[int, np.ndarray] = {}
-    scene = doc["scenes"][doc.get("scene", 0)]
-    stack = [(n, np.eye(4)) for n in scene["nodes"]]
-    while stack:
-        i, parent = stack.pop()
-        world[i] = parent @ _local_matrix(nodes[i], overrides.get(i, {}))
-        stack.extend((c, world[i]) for c in nodes[i].get("children", []))
-
+    anim = GltfAnimation(doc, lambda i: _float_accessor(doc, blob, i),
+                         animation if doc.get("animations") else None)
     if node is None:
         node = next(i for i, n in enumerate(nodes) if "mesh" in n and "skin" in n)
-    skin = doc["skins"][nodes[node]["skin"]]
-    ibm = _float_accessor(doc, blob, skin["inverseBindMatrices"]).reshape(-1, 4, 4)
-    ibm = np.swapaxes(ibm, 1, 2)  # column-major storage
-    joint_mats = np.stack([world[j] @ ibm[k] for k, j in enumerate(skin["joints"])])
-
-    prim = doc["meshes"][nodes[node]["mesh"]]["primitives"][0]
-    attrs = prim["attributes"]
-    v = _float_accessor(doc, blob, attrs["POSITION"])
-    joints = accessor_bytes(doc, blob, attrs["JOINTS_0"]).astype(np.intp)
-    weights = _float_accessor(doc, blob, attrs["WEIGHTS_0"])
-    homo = np.concatenate([v, np.ones((len(v), 1))], axis=1)
-    out = np.zeros((len(v), 4))
-    for k in range(joints.shape[1]):
-        out += weights[:, k:k + 1] * np.einsum("nij,nj->ni", joint_mats[joints[:, k]], homo)
-    return out[:, :3]
+    return anim.vertices(t, [Instance(node, int(nodes[node]["mesh"]), 0)])

@@ -218,6 +218,29 @@ def _khr_object(prim: SplatPrimitive, c: SplatCloud) -> dict[str, Any]:
     return khr
 
 
+def _collider_meshes(b: BufferBuilder, asset: SplatAsset, anchor_mesh_index: dict[int, int],
+                     meshes: list[pygltflib.Mesh | None]) -> list[pygltflib.Mesh]:
+    """The colliders of the written anchor meshes, appended after them: each a mesh drawn by
+    no node, marked ``extras.gsverse = {"collider": kind, "for": <anchor mesh index>}``
+    (spec/README.md §Colliders)."""
+    out = []
+    for collider in asset.colliders:
+        m = anchor_mesh_index.get(id(collider.anchor))
+        if m is None:
+            continue
+        mesh = collider.mesh
+        pos = b.add(mesh.vertices, FLOAT, "VEC3", target=ARRAY_BUFFER, minmax=True)
+        itype = UNSIGNED_SHORT if len(mesh.vertices) < 65535 else UNSIGNED_INT
+        idx = b.add(mesh.faces.reshape(-1), itype, "SCALAR", target=ELEMENT_ARRAY_BUFFER)
+        anchor = meshes[m]
+        name = f"{anchor.name if anchor is not None else 'anchor mesh'} {collider.kind} collider"
+        out.append(pygltflib.Mesh(primitives=[pygltflib.Primitive(
+            attributes=pygltflib.Attributes(POSITION=pos), indices=idx, mode=TRIANGLES)],
+            weights=None, name=name,
+            extras={"gsverse": {"collider": collider.kind, "for": m}}))
+    return out
+
+
 def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltflib.GLTF2:
     """The glTF document for ``asset``; its binary buffer is set as the binary blob.
 
@@ -286,6 +309,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
                                         mode=POINTS, extensions={KHR: khr})
         meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
         nodes.append(pygltflib.Node(mesh=i, name=prim.name, children=None))
+    meshes.extend(_collider_meshes(b, asset, anchor_mesh_index, meshes))
 
     carried = sorted({name for prim in prims for name in prim.khr.extensions})
     used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried

@@ -17,7 +17,7 @@ import numpy as np
 
 from ...version import __version__
 from ...errors import GsverseError, UsageError
-from ...model import LocalAnchors, SplatAsset, SplatPrimitive, TriangleMesh, check_primitive
+from ...model import Collider, LocalAnchors, SplatAsset, SplatPrimitive, TriangleMesh, check_primitive
 from ...quaternion import unit_quaternions
 from ...vocabulary import USD_DEFORMATION, USD_PROFILE, allowed_fields
 from .poses import BakedPoses
@@ -198,12 +198,15 @@ def _build_stage(px: types.SimpleNamespace, asset: SplatAsset, poses: BakedPoses
     mesh_paths: dict[int, Any] = {}
     mesh_schemas: dict[int, Any] = {}
     anchored: list[tuple[SplatPrimitive, Any]] = []
+    # Several anchor meshes (a scene of objects) are named after their first primitive.
+    several = len({id(p.anchoring.mesh) for p in asset.anchored if p.anchoring}) > 1
     for prim in asset.primitives:
         mesh_path = None
         if prim.anchoring is not None:
             key = id(prim.anchoring.mesh)
             if key not in mesh_paths:
-                mesh_paths[key] = root_path.AppendChild(names.take(None, "anchor_mesh"))
+                wanted = f"{prim.name}_anchor_mesh" if several and prim.name else None
+                mesh_paths[key] = root_path.AppendChild(names.take(wanted, "anchor_mesh"))
                 mesh_schemas[key] = _define_mesh(px, stage, mesh_paths[key], prim.anchoring.mesh)
             mesh_path = mesh_paths[key]
         name = names.take(prim.name, "splats")
@@ -212,10 +215,32 @@ def _build_stage(px: types.SimpleNamespace, asset: SplatAsset, poses: BakedPoses
             gs.GetPrim().SetDisplayName(prim.name)
         if prim.anchoring is not None:
             anchored.append((prim, gs))
+    for collider in asset.colliders:
+        if id(collider.anchor) in mesh_paths:
+            _define_collider(px, stage, names, mesh_paths[id(collider.anchor)], collider)
     if poses is not None:
         (key,) = mesh_schemas  # _check_poses guarantees exactly one anchor mesh
         _bake(px, stage, poses, mesh_schemas[key], anchored)
     return stage
+
+
+def _define_collider(px: types.SimpleNamespace, stage, names: _Names, anchor_path,
+                     collider: Collider) -> None:
+    """A collider beside its anchor mesh: a guide ``Mesh`` with UsdPhysics ``CollisionAPI``
+    and ``MeshCollisionAPI`` (approximation ``convexHull`` for a hull), and
+    ``customData = {"gsverse": {"collider": kind, "for": <anchor mesh path>}}``
+    (spec/README.md §Colliders)."""
+    from pxr import UsdPhysics
+
+    path = anchor_path.GetParentPath().AppendChild(
+        names.take(f"{anchor_path.name}_{collider.kind}_collider", "collider"))
+    mesh = _define_mesh(px, stage, path, collider.mesh)
+    prim = mesh.GetPrim()
+    UsdPhysics.CollisionAPI.Apply(prim)
+    approximation = {"hull": UsdPhysics.Tokens.convexHull}.get(collider.kind,
+                                                               UsdPhysics.Tokens.none)
+    UsdPhysics.MeshCollisionAPI.Apply(prim).CreateApproximationAttr(approximation)
+    prim.SetCustomDataByKey("gsverse", {"collider": collider.kind, "for": str(anchor_path)})
 
 
 def _check_protect(path: str, protect: Iterable) -> None:

@@ -1,0 +1,361 @@
+"""``gsverse-pose``: posed splats of an anchored asset from any deformation source.
+
+    gsverse-pose ASSET (--times T... | --fps F [--duration D]) [--source FILE]
+                 [--animation NAME|INDEX] [--deform KIND=AMOUNT ...] [--format ply|glb|usd]
+                 [-o DIR] [--vat OUT.exr [--vat-mode position|offset] [--vat-half]
+                 [--vat-width N] [--vat-normalize]] [-w] [--json] [-q]
+
+The anchor mesh is posed at every time by the source (:mod:`gsverse_format.poses`): the
+asset's own skin/morph targets/animations by default, or ``--source`` (a skinned/morphed glTF
+with the anchor mesh's vertices, an ``.npz`` vertex cache, an OBJ/PLY sequence, an EXR VAT),
+then by the ``--deform`` quick looks in order (alone, they deform the rest pose). Each anchored
+primitive is remapped (:func:`gsverse_format.api.remap`) onto its posed anchor mesh; static
+primitives stay. Outputs: one file per time in DIR (``<asset>_fNNNN.ply`` as 3DGS PLY, or
+``.glb`` plain ``KHR_gaussian_splatting``), or one ``<asset>.usda`` with time samples
+(``--format usd``; time codes = seconds × ``--fps``, default 24 per second), and with
+``--vat`` an EXR vertex-animation texture of the anchor mesh over the sampled times.
+
+Exit codes: 0 success, 1 bad input, 2 usage error (existing outputs without ``-w``), 70
+internal error, 130 interrupted. Errors are one line on stderr naming the file and the cause.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time as _time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import FormatError, GsverseError, UsageError
+from ..progress import Progress
+from ..version import __version__
+
+PROG = "gsverse-pose"
+FORMATS = {"ply": ".ply", "glb": ".glb", "usd": ".usda"}
+#: Most poses one run writes (a typo in --fps/--duration should not fill a disk).
+MAX_POSES = 100_000
+
+EPILOG = """\
+sources (--source; default: the asset's own skinned/morphed anchor mesh and its animations):
+  FILE.glb/.gltf   a skinned and/or morph-target glTF whose mesh has the anchor mesh's
+                   vertices (same count and order, same rest positions), e.g. the file given to
+                   gsverse-convert --mesh; --animation picks one of its animations
+  FILE.npz         vertex cache: vertices (T, V, 3), optional times (T,) in seconds or fps
+  DIR or 'GLOB'    one .obj/.ply per frame, sorted by name (numbers compared as numbers)
+  FILE.exr         vertex-animation texture (rows = frames, columns = vertices; see
+                   gsverse_format.poses.vat)
+  frames without times are 1/--source-fps apart (default 24). Times outside a source's
+  range clamp to its first or last pose.
+
+quick looks (--deform, several allowed, applied in order after the source):
+  stretch=F (factor along +Y), twist=DEG, bend=DEG, shake=A (fraction of the bounding-box
+  diagonal); placed on the anchor mesh's bounding box.
+
+examples:
+  gsverse-pose fox.glb --source Fox.glb --animation Walk --fps 24 -o posed/
+  gsverse-pose fox.glb --source Fox.glb --times 0.5 1.0 --format glb -o posed/
+  gsverse-pose capsule.glb --deform twist=90 --deform stretch=1.3 --times 0 -o look/
+  gsverse-pose fox.glb --source sim.npz --fps 30 --format usd -o out/ --vat out/fox_vat.exr
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog=PROG, description="Pose the splats of an anchored asset by a deformation source "
+                               "and write one posed file per time.",
+        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("asset", metavar="ASSET", help="an anchored asset (.glb, .gltf, .usda, ...)")
+    when = p.add_mutually_exclusive_group(required=True)
+    when.add_argument("--times", type=float, nargs="+", metavar="T",
+                      help="the times to pose at, in seconds")
+    when.add_argument("--fps", type=float, metavar="F",
+                      help="pose at F frames per second from 0 to --duration (default: the "
+                           "source's length)")
+    p.add_argument("--duration", type=float, metavar="D",
+                   help="with --fps: the last time, in seconds")
+    p.add_argument("--source", metavar="FILE",
+                   help="where the poses come from (see below); default: the asset's own "
+                        "animated anchor mesh")
+    p.add_argument("--animation", metavar="NAME|INDEX", default="0",
+                   help="which glTF animation (default: the first)")
+    p.add_argument("--source-fps", type=float, default=24.0, metavar="F",
+                   help="frame rate of source frames that carry no times (default 24)")
+    p.add_argument("--deform", action="append", metavar="KIND=AMOUNT",
+                   help="a quick-look deformation: stretch=F, twist=DEG, bend=DEG, shake=A")
+    p.add_argument("--format", choices=tuple(FORMATS), default="ply",
+                   help="ply: 3DGS PLY per time (default); glb: plain KHR_gaussian_splatting "
+                        "GLB per time; usd: one .usda with time samples")
+    p.add_argument("-o", "--output-dir", metavar="DIR", help="folder for the posed files "
+                                                             "(created if missing)")
+    vat = p.add_argument_group("vertex-animation texture")
+    vat.add_argument("--vat", metavar="OUT.exr",
+                     help="also write the anchor mesh's poses as an OpenEXR VAT")
+    vat.add_argument("--vat-mode", choices=("position", "offset"), default="position",
+                     help="store positions (default) or offsets from the rest pose")
+    vat.add_argument("--vat-half", action="store_true", help="16-bit HALF texels (default "
+                                                             "32-bit FLOAT)")
+    vat.add_argument("--vat-width", type=int, metavar="N",
+                     help="texture width (default: the vertex count, at most 8192; larger "
+                          "meshes wrap onto more rows per frame)")
+    vat.add_argument("--vat-normalize", action="store_true",
+                     help="store values scaled into [0, 1], the bounds in the header")
+    p.add_argument("-w", "--overwrite", action="store_true",
+                   help="replace existing outputs (default: refuse, exit 2)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    return p
+
+
+@dataclass
+class PoseSummary:
+    asset: str
+    source: str
+    format: str
+    times: list[float]
+    outputs: list[str] = field(default_factory=list)
+    vat: str | None = None
+    anchor_meshes: int = 0
+    splats: int = 0
+    max_displacement: float = 0.0
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+    def lines(self) -> list[str]:
+        out = [f"{PROG}: {self.asset}: {len(self.times)} pose(s) from {self.source}",
+               f"  splats      {self.splats} on {self.anchor_meshes} anchor mesh(es); anchor "
+               f"vertices moved up to {self.max_displacement:.4g}"]
+        if self.outputs:
+            out.append(f"  wrote       {len(self.outputs)} {self.format} file(s) in "
+                       f"{os.path.dirname(self.outputs[0]) or '.'}")
+        if self.vat:
+            out.append(f"  VAT         {self.vat}")
+        out.append(f"  time        {self.seconds:.2f} s")
+        return out
+
+
+def _times(args: argparse.Namespace, duration: float) -> np.ndarray:
+    if args.times is not None:
+        if args.duration is not None:
+            raise UsageError("--duration goes with --fps, not --times")
+        times = np.asarray(args.times, dtype=np.float64)
+    else:
+        fps = float(args.fps)
+        if not (math.isfinite(fps) and fps > 0):
+            raise UsageError(f"--fps must be > 0, got {args.fps}")
+        end = duration if args.duration is None else float(args.duration)
+        if not (math.isfinite(end) and end >= 0):
+            raise UsageError(f"--duration must be >= 0, got {args.duration}")
+        count = int(math.floor(end * fps + 1e-9)) + 1
+        if count > MAX_POSES:
+            raise UsageError(f"{count} poses asked for; at most {MAX_POSES}")
+        times = np.arange(count, dtype=np.float64) / fps
+    if not np.all(np.isfinite(times)):
+        raise UsageError("--times must be finite numbers")
+    if len(times) > MAX_POSES:
+        raise UsageError(f"{len(times)} poses asked for; at most {MAX_POSES}")
+    return times
+
+
+def _outputs(args: argparse.Namespace, stem: str, count: int) -> list[str]:
+    if args.output_dir is None:
+        return []
+    ext = FORMATS[args.format]
+    if args.format == "usd":
+        return [os.path.join(args.output_dir, stem + ext)]
+    return [os.path.join(args.output_dir, f"{stem}_f{i:04d}{ext}") for i in range(count)]
+
+
+def _posed_asset(asset, posed_meshes: dict[int, np.ndarray]):
+    """A plain asset: every anchored primitive remapped onto its posed mesh."""
+    from ..api import remap
+    from ..model import SplatAsset, SplatCloud, SplatPrimitive
+
+    prims = []
+    for prim in asset.primitives:
+        c = prim.splats
+        if prim.anchoring is not None and id(prim.anchoring.mesh) in posed_meshes:
+            r = remap(prim.anchoring, posed_meshes[id(prim.anchoring.mesh)])
+            c = SplatCloud(r.means, r.rotations, r.scales, c.opacities, c.sh, c.color_space,
+                           dict(c.extra))
+        prims.append(SplatPrimitive(c, None, prim.name, prim.khr))
+    return SplatAsset(prims, asset.generator)
+
+
+def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
+    from ..api import read, write
+    from ..poses import open_source, parse_deformations
+    from ..poses.gltf_source import open_gltf_source
+
+    started = _time.monotonic()
+    if args.output_dir is None and args.vat is None:
+        raise UsageError("nothing to write: give -o DIR and/or --vat OUT.exr")
+    if args.vat is not None and os.path.splitext(args.vat)[1].lower() != ".exr":
+        raise UsageError("--vat writes OpenEXR: give a .exr file name", args.vat)
+    if args.vat_width is not None and args.vat_width < 1:
+        raise UsageError(f"--vat-width must be at least 1, got {args.vat_width}")
+    if not (math.isfinite(args.source_fps) and args.source_fps > 0):
+        raise UsageError(f"--source-fps must be > 0, got {args.source_fps}")
+    looks = parse_deformations(args.deform)
+    asset_path = args.asset
+    if not os.path.isfile(asset_path):
+        raise FormatError("file not found", asset_path)
+    asset = read(asset_path)
+    meshes = {id(p.anchoring.mesh): p.anchoring.mesh for p in asset.anchored
+              if p.anchoring is not None}
+    if not meshes:
+        raise FormatError("has no anchored splats (convert it with gsverse-convert --mesh "
+                          "first)", asset_path)
+    animation: int | str = int(args.animation) if args.animation.isdigit() else args.animation
+
+    source = None
+    source_label = "the quick looks" if looks else "the asset's animation"
+    if args.source is not None:
+        source = open_source(args.source, animation=animation, fps=args.source_fps)
+        source_label = args.source
+    elif not looks:
+        if os.path.splitext(asset_path)[1].lower() not in (".glb", ".gltf"):
+            raise UsageError("the asset is not glTF, so it carries no animation: give "
+                             "--source FILE or --deform", asset_path)
+        try:
+            source = open_gltf_source(asset_path, animation)
+        except FormatError as err:
+            raise FormatError(f"{err.cause}; give --source FILE (a skinned glTF, a vertex "
+                              f"cache, a VAT) or --deform", asset_path) from None
+        source_label = f"{asset_path} (its own animation)"
+
+    # which anchor meshes the source drives
+    driven: dict[int, Any] = {}
+    if source is not None:
+        problems = []
+        for key, mesh in meshes.items():
+            try:
+                source.match(mesh.vertices)
+                driven[key] = mesh
+                break   # one source poses one mesh
+            except FormatError as err:
+                problems.append(err)
+        if not driven:
+            raise problems[0]
+    else:
+        driven = dict(meshes)
+
+    duration = source.duration() if source is not None else 0.0
+    times = _times(args, duration)
+    usd = args.output_dir is not None and args.format == "usd"
+    if (usd or args.vat) and np.any(np.diff(times) <= 0):
+        raise UsageError(f"{'a VAT' if args.vat else 'USD time samples'} needs strictly "
+                         f"increasing --times")
+    if usd and len(meshes) != 1:
+        raise UsageError("USD time samples need an asset with exactly one anchor mesh",
+                         asset_path)
+    stem = os.path.splitext(os.path.basename(asset_path))[0]
+    outputs = _outputs(args, stem, len(times))
+    targets = outputs + ([args.vat] if args.vat else [])
+    if not args.overwrite:
+        for path in targets:
+            if os.path.lexists(path):
+                raise UsageError("output exists; use -w/--overwrite to replace it", path)
+    for path in targets:
+        if os.path.exists(path) and os.path.samefile(path, asset_path):
+            raise UsageError("output would overwrite the input asset", path)
+    if args.output_dir is not None:
+        if os.path.exists(args.output_dir) and not os.path.isdir(args.output_dir):
+            raise UsageError("is not a folder", args.output_dir)
+        os.makedirs(args.output_dir, exist_ok=True)
+
+    summary = PoseSummary(asset_path, source_label, args.format, [float(t) for t in times],
+                          anchor_meshes=len(driven), splats=asset.splat_count())
+    vat_mesh_key = next(iter(driven))
+    progress.stage(f"posing {len(times)} time(s)")
+    frames: list[dict[int, np.ndarray]] = []   # every pose first: a bad one writes nothing
+    for i, t in enumerate(times):
+        posed: dict[int, np.ndarray] = {}
+        for key, mesh in driven.items():
+            rest = mesh.vertices.astype(np.float64)
+            v = source.at(float(t)) if source is not None else rest.copy()
+            for look in looks:
+                v = look.apply(v, rest, float(t))
+            if not np.all(np.isfinite(v)):
+                raise FormatError(f"the pose at t={t:g} s has non-finite vertices",
+                                  source.path if source is not None else asset_path)
+            posed[key] = v
+            summary.max_displacement = max(summary.max_displacement,
+                                           float(np.linalg.norm(v - rest, axis=1).max()))
+        frames.append(posed)
+        progress.update(i + 1, len(times), f"t={t:g}s")
+    if args.output_dir is not None and args.format != "usd":
+        progress.stage(f"writing {len(times)} {args.format} file(s)")
+        for i, posed in enumerate(frames):
+            write(_posed_asset(asset, posed), outputs[i], protect=(asset_path,))
+            summary.outputs.append(outputs[i])
+            progress.update(i + 1, len(times))
+    progress.close()
+    if usd:
+        from ..io.usd import BakedPoses
+
+        rate = float(args.fps) if args.fps is not None else 24.0
+        poses = BakedPoses(times * rate, np.stack([f[vat_mesh_key] for f in frames]), rate)
+        write(asset, outputs[0], protect=(asset_path,), bake_poses=poses)
+        summary.outputs.append(outputs[0])
+    if args.vat:
+        from ..poses import write_vat
+
+        write_vat(args.vat, times, np.stack([f[vat_mesh_key] for f in frames]),
+                  rest=driven[vat_mesh_key].vertices, mode=args.vat_mode, half=args.vat_half,
+                  width=args.vat_width, normalized=args.vat_normalize, protect=(asset_path,))
+        summary.vat = args.vat
+    summary.seconds = _time.monotonic() - started
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    progress = Progress(enabled=None if not (args.quiet or args.json) else False)
+    try:
+        with warnings.catch_warnings():
+            if args.quiet:
+                warnings.simplefilter("ignore")
+            summary = run(args, progress)
+    except UsageError as exc:
+        progress.close()
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except GsverseError as exc:
+        progress.close()
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 1
+    except MemoryError:
+        progress.close()
+        print(f"{PROG}: error: {args.asset}: out of memory", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug, not bad input: one line; GSVERSE_DEBUG=1 shows it all
+        progress.close()
+        if os.environ.get("GSVERSE_DEBUG"):
+            raise
+        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} "
+              f"(set GSVERSE_DEBUG=1 for a traceback, and please report it)".replace("\n", " "),
+              file=sys.stderr)
+        return 70
+    if args.json:
+        print(json.dumps(summary.as_dict(), indent=2))
+    elif not args.quiet:
+        print("\n".join(summary.lines()))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,210 @@
+"""Scenes of several objects and physics-ready anchor meshes, for :mod:`gsverse_format.pipeline`.
+
+Scenes (``gsverse-convert scene.ply out.glb --mesh fox.obj --mesh chair.glb``)
+    Each mesh is one object, read like a single ``--mesh`` (same frame as the splats, rotated
+    into the glTF frame with them). Every splat is bound to its nearest non-degenerate
+    triangle over all meshes (:func:`bind_scene`: :func:`gsverse_format.binding.bind_local`
+    per mesh, then the smallest distance; on a tie the mesh given first wins). ``--max-distance``
+    is relative to the bounding-box diagonal of *the object the splat is nearest to* (or in
+    scene units with ``--absolute-distance``), so each object keeps the limit it would have
+    alone; a splat beyond its object's limit is not anchored. Each object with splats becomes
+    one anchored primitive and node named after its mesh file's stem (``fox``), its anchor mesh
+    ``fox anchor mesh``; the splats anchored to no object stay one plain static primitive
+    (``<input stem> static``), or are dropped with ``--drop-unanchored``. Without
+    ``--max-distance`` every splat is anchored to its nearest object.
+
+Physics-ready anchor meshes (:mod:`gsverse_format.manifold`)
+    ``--watertight`` replaces each anchor mesh by a closed 2-manifold before binding, so the
+    splats are bound (again, for a source's exact anchors) to the repaired surface;
+    ``--collider hull`` adds each anchor mesh's convex hull as its collider; every summary
+    reports whether each written anchor mesh is a closed 2-manifold.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .binding import BindResult, bind_local
+from .errors import BindingError, GsverseError, UsageError
+from .io.mesh import read_mesh
+from .io.registry import FRAMES
+from .model import (
+    Anchoring,
+    Collider,
+    SplatAsset,
+    SplatCloud,
+    SplatPrimitive,
+    TriangleMesh,
+)
+from .progress import Progress
+from .transform import rotate_mesh
+
+# The pipeline's ConvertOptions and ConvertSummary are typed Any here: the pipeline imports
+# this module, so importing them back would be a cycle.
+ConvertOptions = Any
+ConvertSummary = Any
+
+__all__ = [
+    "anchor_scene",
+    "bind_scene",
+    "distance_stats",
+    "finish_physics",
+    "object_name",
+    "prepare_mesh",
+    "read_scene_meshes",
+]
+
+
+def object_name(path: str) -> str:
+    """The name of the object a mesh file holds: its file stem."""
+    return os.path.splitext(os.path.basename(path.rstrip(os.sep)))[0] or "object"
+
+
+def distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:
+    """Percentiles of splat-to-mesh distances (the summary's ``distance``)."""
+    if distance.size == 0:
+        return {}
+    p50, p95, p99 = np.percentile(distance, [50, 95, 99])
+    return {"p50": float(p50), "p95": float(p95), "p99": float(p99),
+            "max": float(distance.max()), "mesh_diagonal": float(diagonal)}
+
+
+def _diagonal(mesh: TriangleMesh) -> float:
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    return float(np.linalg.norm(hi.astype(np.float64) - lo))
+
+
+def read_scene_meshes(paths: list[str], frame: str, frame_change: bool) -> list[TriangleMesh]:
+    """The meshes of ``paths`` in the glTF frame, from the source's ``frame`` (as the source's
+    own mesh is rotated), or as they are without ``frame_change``."""
+    meshes = [read_mesh(p) for p in paths]
+    if frame_change and FRAMES[frame].name != "gltf":
+        meshes = [rotate_mesh(m, FRAMES[frame].to_gltf) for m in meshes]
+    return meshes
+
+
+def bind_scene(splats: SplatCloud, meshes: list[TriangleMesh], *, deformation: str = "affine",
+               progress: Callable[[int, int], None] | None = None,
+               paths: list[str] | None = None) -> tuple[np.ndarray, list[BindResult]]:
+    """Each splat's nearest mesh (index into ``meshes``; ties to the first) and every mesh's
+    binding of all splats (:func:`bind_local`); a binding error names ``paths[j]``."""
+    bound = []
+    for j, mesh in enumerate(meshes):
+        try:
+            bound.append(bind_local(splats, mesh, deformation=deformation, progress=progress))
+        except GsverseError as exc:
+            raise (exc.with_path(paths[j]) if paths else exc) from None
+    owner = np.argmin(np.stack([b.distance for b in bound]), axis=0) if len(splats) \
+        else np.zeros(0, np.intp)
+    return owner, bound
+
+
+def prepare_mesh(mesh: TriangleMesh, options: ConvertOptions, summary: ConvertSummary,
+                 path: str) -> TriangleMesh:
+    """``--watertight``: ``mesh`` made a closed 2-manifold (a note says what was done)."""
+    if not options.watertight:
+        return mesh
+    from .manifold import make_watertight
+
+    try:
+        repaired, what = make_watertight(mesh)
+    except GsverseError as exc:
+        raise exc.with_path(path) from None
+    summary.notes.append(f"--watertight ({object_name(path)}): {what}")
+    return repaired
+
+
+def finish_physics(asset: SplatAsset, options: ConvertOptions, summary: ConvertSummary) -> None:
+    """The manifold report of each written anchor mesh into ``summary.anchor_meshes``, and
+    ``--collider`` meshes into ``asset.colliders``."""
+    from .manifold import collider, manifold_report
+
+    seen: set[int] = set()
+    for prim in asset.anchored:
+        assert prim.anchoring is not None
+        mesh = prim.anchoring.mesh
+        if id(mesh) in seen:
+            continue
+        seen.add(id(mesh))
+        entry: dict[str, Any] = {"name": prim.name, "faces": mesh.face_count,
+                                 **manifold_report(mesh).as_dict(), "collider": None}
+        if options.collider is not None:
+            hull = collider(mesh, options.collider)
+            asset.colliders.append(Collider(hull, mesh, options.collider))
+            entry["collider"] = {"kind": options.collider, "faces": hull.face_count}
+        summary.anchor_meshes.append(entry)
+
+
+def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
+                 options: ConvertOptions, progress: Progress,
+                 summary: ConvertSummary) -> SplatAsset:
+    """Step 6 for several objects (see the module docstring): ``meshes`` in the splats'
+    frame, one per path of ``paths``."""
+    splats = result.splats
+    if result.anchors is not None:
+        raise UsageError(f"several --mesh need free splats; the {summary.source} source comes "
+                         f"with its own binding", summary.input)
+    if options.sh_degree is not None and splats.sh_degree > options.sh_degree:
+        splats = splats.with_sh_degree(options.sh_degree)
+    ready = []
+    for mesh, path in zip(meshes, paths):
+        if options.faces is not None and mesh.face_count > options.faces:
+            from .meshops import decimate
+
+            progress.stage(f"decimating {object_name(path)}: {mesh.face_count} -> "
+                           f"{options.faces} faces")
+            try:
+                mesh = decimate(mesh, options.faces)
+            except GsverseError as exc:
+                raise exc.with_path(path) from None
+        ready.append(prepare_mesh(mesh, options, summary, path))
+    progress.stage(f"binding to the nearest triangles of {len(ready)} objects")
+    owner, bound = bind_scene(splats, ready, deformation=options.deformation,
+                              progress=progress.update, paths=paths)
+    summary.mesh_faces = sum(m.face_count for m in ready)
+    summary.degenerate_faces = sum(b.degenerate_faces for b in bound)
+    summary.profile = "local"
+    summary.deformation = options.deformation
+
+    anchored = np.zeros(len(splats), bool)
+    primitives = []
+    for j, (mesh, path, b) in enumerate(zip(ready, paths, bound)):
+        mine = owner == j
+        diagonal = _diagonal(mesh)
+        limit = None
+        if options.max_distance is not None:
+            limit = options.max_distance if options.absolute_distance \
+                else options.max_distance * diagonal
+            mine &= b.distance <= limit
+        idx = np.flatnonzero(mine)
+        if not options.keep_order:
+            idx = idx[np.argsort(b.anchors.face_index[idx], kind="stable")]
+        anchored[idx] = True
+        name = object_name(path)
+        summary.objects.append({
+            "name": name, "mesh": path, "splats": int(idx.size), "faces": mesh.face_count,
+            "degenerate_faces": b.degenerate_faces, "max_distance": limit,
+            "distance": distance_stats(b.distance[idx], diagonal)})
+        if idx.size:
+            primitives.append(SplatPrimitive(splats.subset(idx),
+                                             Anchoring(mesh, b.anchors.subset(idx)), name,
+                                             result.khr))
+        else:
+            summary.notes.append(f"no splat is anchored to {name} ({path}): its mesh is not "
+                                 f"written")
+    far_idx = np.flatnonzero(~anchored)
+    stem = os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
+    if far_idx.size:
+        if options.drop_unanchored:
+            summary.dropped = int(far_idx.size)
+        else:
+            primitives.append(SplatPrimitive(splats.subset(far_idx), None, f"{stem} static",
+                                             result.khr))
+    if not primitives:
+        raise BindingError(f"all {len(splats)} splats are farther than --max-distance from "
+                           f"every mesh, so --drop-unanchored leaves nothing to write (are the "
+                           f"meshes in the splats' frame?)", summary.input)
+    return SplatAsset(primitives)
