@@ -21,6 +21,7 @@ from typing import Any, Literal, Union
 import numpy as np
 
 from .errors import FormatError, UsageError
+from .rig import AnchorRig
 
 __all__ = [
     "check_primitive",
@@ -163,6 +164,9 @@ class TriangleMesh:
 
     vertices: np.ndarray
     faces: np.ndarray
+    #: skin/morph targets/animations of an animated anchor mesh (:mod:`gsverse_format.rig`);
+    #: a mesh made from this one with other vertices does not keep it
+    rig: AnchorRig | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         self.vertices = _as(self.vertices, np.float32, (3,), "vertices")

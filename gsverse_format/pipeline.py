@@ -445,6 +445,7 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     assert mesh is not None  # load_source reconstructs a missing mesh
     if options.sh_degree is not None and splats.sh_degree > options.sh_degree:
         splats = splats.with_sh_degree(options.sh_degree)
+    rigged = mesh.rig is not None
     if options.faces is not None and mesh.face_count > options.faces:
         from .meshops import decimate
 
@@ -460,6 +461,9 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     repaired = prepare_mesh(mesh, options, summary, options.mesh or summary.input)
     if repaired is not mesh:
         mesh = repaired
+    if rigged and mesh.rig is None:
+        summary.notes.append("the anchor mesh's skin, morph targets and animations were dropped: "
+                             "decimating or repairing it changed its vertices")
         if anchors is not None:
             summary.notes.append("--watertight: the source's exact binding was replaced by "
                                  "nearest-triangle binding to the repaired mesh (local profile)")

@@ -31,5 +31,6 @@ def rotate_splats(cloud: SplatCloud, rotation: np.ndarray) -> SplatCloud:
 
 def rotate_mesh(mesh: TriangleMesh, rotation: np.ndarray) -> TriangleMesh:
     """Mesh with vertices rotated by ``rotation`` (faces and their corner order unchanged)."""
+    rig = mesh.rig.transformed(rotation) if mesh.rig is not None else None
     return TriangleMesh(mesh.vertices.astype(np.float64) @ np.asarray(rotation, np.float64).T,
-                        mesh.faces)
+                        mesh.faces, rig)

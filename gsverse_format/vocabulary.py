@@ -30,6 +30,8 @@ __all__ = ["EXTENSION", "KHR", "PROFILES", "DEFORMATIONS", "BYTE", "UNSIGNED_BYT
 EXTENSION = "GSVERSE_gaussian_splatting_mesh_anchor"
 #: The base extension.
 KHR = "KHR_gaussian_splatting"
+#: ratified glTF extension hiding a node (the anchor node of an animated anchor mesh)
+NODE_VISIBILITY = "KHR_node_visibility"
 
 Profile = Literal["local", "games"]
 PROFILES: tuple[str, ...] = ("local", "games")

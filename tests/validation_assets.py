@@ -25,6 +25,7 @@ from gsverse_format.io.gltf import asset_to_gltf
 from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
 from gsverse_format.remap_reference import remap
+from gsverse_format.rig import AnchorRig, RigAnimation, RigChannel, RigNode
 
 KHR = "KHR_gaussian_splatting"
 ANCHOR = EXTENSION_NAME
@@ -186,6 +187,34 @@ def _local() -> Doc:
     return Doc.of(local_asset())
 
 
+def rigged_asset() -> SplatAsset:
+    """:func:`local_asset` whose anchor mesh is animated (spec §Animated anchor meshes): a
+    two-joint skin, one morph target and an animation of both."""
+    asset = local_asset()
+    mesh = asset.primitives[0].anchoring.mesh
+    v = mesh.vertices.astype(np.float64)
+    up = np.clip((v[:, 1] - v[:, 1].min()) / np.ptp(v[:, 1]), 0, 1)
+    joints = np.zeros((len(v), 4), np.uint16)
+    joints[:, 1] = 1
+    weights = np.zeros((len(v), 4), np.float32)
+    weights[:, 0], weights[:, 1] = 1 - up, up
+    tip = RigNode("tip", translation=np.array([0.0, 0.5, 0.0]))
+    ibm = np.stack([np.eye(4), np.eye(4)])
+    ibm[1, 1, 3] = -0.5
+    turn = Rotation.from_euler("z", [[0], [30]], degrees=True).as_quat()
+    mesh.rig = AnchorRig(
+        nodes=[RigNode("root", children=[1]), tip], roots=[0], joints=[0, 1], inverse_bind=ibm,
+        joints_0=joints, weights_0=weights, targets=[0.1 * v.astype(np.float32)], weights=[0.0],
+        animations=[RigAnimation("bend", [
+            RigChannel(1, "rotation", np.array([0.0, 1.0]), turn),
+            RigChannel(None, "weights", np.array([0.0, 1.0]), np.array([[0.0], [1.0]]))])])
+    return asset
+
+
+def _rigged() -> Doc:
+    return Doc.of(rigged_asset())
+
+
 def _games() -> Doc:
     return Doc.of(games_asset())
 
@@ -206,6 +235,7 @@ def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
             ("quantized8_rigid.gltf", local_asset(deformation="rigid", lift=0.05),
              {"quantize": {"barycentrics": "unsigned_byte", "localRotation": "byte"}}),
             ("quantized8_games.glb", games_asset(), {"quantize": {"barycentrics": "unsigned_byte"}}),
+            ("rigged.glb", rigged_asset(), {}),
             ("plain.glb", SplatAsset([SplatPrimitive(example_splats(example_mesh(1), 20), None,
                                                      "plain")]), {})):
         out.append(Doc.of(asset, **kw).write(folder, name))
@@ -601,6 +631,38 @@ def _(folder):
         d.doc["nodes"].append({"mesh": d.ext()["mesh"], "name": "anchor"})
         d.doc["scenes"][0]["nodes"].append(len(d.doc["nodes"]) - 1)
     return _edited(folder, "drawn.glb", edit)
+
+
+@trigger("ANCHOR_SKIN_INVALID")
+def _(folder):
+    return _edited(folder, "skin-ibm.glb", lambda d: d.doc["skins"][0]["joints"].append(
+        d.doc["skins"][0]["joints"][0]), _rigged)
+
+
+@trigger("ANCHOR_SKIN_ATTRIBUTES_INVALID")
+def _(folder):
+    return _edited(folder, "skin-attrs.glb", lambda d: d.anchor_prim()["attributes"].pop(
+        "JOINTS_0"), _rigged)
+
+
+@trigger("ANCHOR_SKIN_WEIGHTS_NOT_NORMALIZED")
+def _(folder):
+    def edit(d):
+        w = d.values(d.anchor_prim()["attributes"]["WEIGHTS_0"])
+        w[:] *= 0.5
+    return _edited(folder, "skin-weights.glb", edit, _rigged)
+
+
+@trigger("ANCHOR_MORPH_TARGETS_INVALID")
+def _(folder):
+    return _edited(folder, "morph-weights.glb", lambda d: d.doc["meshes"][d.ext()["mesh"]][
+        "weights"].append(0.0), _rigged)
+
+
+@trigger("ANCHOR_ANIMATION_TARGET_INVALID")
+def _(folder):
+    return _edited(folder, "anim-target.glb", lambda d: d.doc["animations"][0]["channels"][0][
+        "target"].update(node=999), _rigged)
 
 
 @trigger("ANCHOR_MESH_MULTIPLE_INSTANCES")

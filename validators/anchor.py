@@ -17,12 +17,14 @@ from gsverse_format.codes import Code
 from gsverse_format.io.gltf import AccessorLayout, describe_format, format_allowed
 from gsverse_format.model import TriangleMesh
 from gsverse_format.vocabulary import (ANCHOR_FIELDS, EXTENSION, FIELDS_BY_KEY, FLOAT, KHR,
+                                       NODE_VISIBILITY,
                                        PROFILES, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
                                        required_fields)
 
 from .container import Context
 from .khr import SplatData, quantization_step
 from .schema import schema_errors
+from .rig import check_rig
 from .values import (AnchorMesh, AnchorValues, check_anchor_values, check_finite,
                      check_triangles)
 
@@ -104,9 +106,13 @@ def anchor_mesh(ctx: Context, m: int, p: int) -> AnchorMesh:
     users = [n for n, node in enumerate(ctx.array("nodes"))
              if isinstance(node, dict) and node.get("mesh") == m]
     for n in users:
+        if _hidden(ctx.array("nodes")[n]):
+            continue   # spec §Animated anchor meshes: hidden with KHR_node_visibility
         ctx.issues.add(Code.ANCHOR_MESH_INSTANTIATED, f"node {n} instantiates the anchor mesh "
                        f"{m}; KHR-only viewers draw its triangles over the splats",
                        pointer=f"/nodes/{n}/mesh")
+    if len(users) == 1:
+        check_rig(ctx, m, p, users[0], len(vertices))
     if len(users) > 1:
         ctx.issues.add(Code.ANCHOR_MESH_MULTIPLE_INSTANCES, f"{len(users)} nodes ("
                        f"{', '.join(map(str, users))}) instantiate the anchor mesh {m}; at most "
@@ -202,3 +208,9 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
                           {prop: quantization_step(lay) for prop, lay in layouts.items()},
                           obj.get("deformation", "affine"))
     check_anchor_values(ctx, values, mesh_info, splat.rest_pose(), consistent=not errors)
+
+
+def _hidden(node: dict) -> bool:
+    """Whether ``node`` is hidden by ``KHR_node_visibility`` (``visible: false``)."""
+    ext = (node.get("extensions") or {}).get(NODE_VISIBILITY)
+    return isinstance(ext, dict) and ext.get("visible") is False

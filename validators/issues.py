@@ -5,9 +5,8 @@ Reporting follows the Khronos glTF-Validator: every finding has a stable ``code`
 byte ``offset`` into a GLB file) and a one-line ``message``. Findings about many splats or
 triangles at once are aggregated: one finding with a ``count`` and a few ``examples``.
 
-:data:`CATALOGUE` gives every code of :class:`gsverse_format.codes.Code` (and no other) its
-severity, group, trigger, location and fix: ``spec/validation.md`` is generated from it
-(:mod:`gsverse_format.validators.catalogue`) and a test keeps the two identical.
+:data:`CATALOGUE` gives every code of :class:`gsverse_format.codes.Code` its severity, group,
+trigger, location and fix (with :mod:`.issues_rig`); ``spec/validation.md`` is generated from it.
 """
 from __future__ import annotations
 
@@ -16,6 +15,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from gsverse_format.codes import Code
+from .issues_rig import RIG_ENTRIES
 from gsverse_format.vocabulary import EXTENSION, KHR
 
 __all__ = ["Severity", "CodeInfo", "CATALOGUE", "Finding", "Issues", "TOLERANCES",
@@ -284,9 +284,9 @@ _ENTRIES = [
        "SCALAR UNSIGNED_BYTE/SHORT/INT (not normalized), their count is not a multiple of 3, "
        "an index is out of range, or a non-indexed vertex count is not a multiple of 3.",
        "/meshes/{m}/primitives/{p}/indices", "Write valid triangle indices."),
-    _c(Code.ANCHOR_MESH_INSTANTIATED, W, "Anchor mesh", "A node instantiates the anchor mesh, so "
-       "KHR-only viewers draw the triangles over the splats (the spec says SHOULD NOT).",
-       "/nodes/{n}/mesh", "Remove the mesh from the node (the extension reaches it by index)."),
+    _c(Code.ANCHOR_MESH_INSTANTIATED, W, "Anchor mesh", "A node not hidden by "
+       "KHR_node_visibility instantiates the anchor mesh: viewers draw it over the splats.",
+       "/nodes/{n}/mesh", "Remove the mesh from the node, or hide it with KHR_node_visibility."),
     _c(Code.ANCHOR_MESH_MULTIPLE_INSTANCES, E, "Anchor mesh", "More than one node instantiates "
        "the anchor mesh (the spec says MUST NOT): each instance may carry its own skin or morph "
        "weights, so which one drives the splats is ambiguous; readers refuse the asset.",
@@ -491,7 +491,7 @@ _ENTRIES = [
     _c(Code.INTERNAL_ERROR, E, "Validator", "A check failed unexpectedly: a bug in "
        "gsverse-validate, not necessarily in the asset. The other checks still ran.", "none",
        "Report it with the file."),
-]
+] + [_c(c, Severity[s], g, t, p, f) for c, s, g, t, p, f in RIG_ENTRIES]
 
 #: Where the codes shared with glTF point in USD files ({prim}: the splat prim, {mesh}: its
 #: anchor Mesh), and the severity of the value checks for foreign USD prims, whose readers

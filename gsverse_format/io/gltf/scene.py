@@ -54,11 +54,16 @@ def mesh_instances(doc: dict) -> list[tuple[int, np.ndarray]]:
 
     Without scenes, every mesh once with the identity. Node cycles are an error.
     """
+    return [(m, world) for _, m, world in node_instances(doc)]
+
+
+def node_instances(doc: dict) -> list[tuple[int | None, int, np.ndarray]]:
+    """(node index or None, mesh index, global matrix), as :func:`mesh_instances`."""
     nodes = _array(doc.get("nodes"), "nodes", "/nodes")
     meshes = _array(doc.get("meshes"), "meshes", "/meshes")
     scenes = _array(doc.get("scenes"), "scenes", "/scenes")
     if not scenes:
-        return [(m, np.eye(4)) for m in range(len(meshes))]
+        return [(None, m, np.eye(4)) for m in range(len(meshes))]
     chosen = doc.get("scene")
     s = chosen if isinstance(chosen, int) and is_int(chosen) and 0 <= chosen < len(scenes) else 0
     scene = scenes[s]
@@ -66,7 +71,7 @@ def mesh_instances(doc: dict) -> list[tuple[int, np.ndarray]]:
         raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"scenes[{s}] must be an object",
                          f"/scenes/{s}")
     roots = _array(scene.get("nodes"), f"scenes[{s}].nodes", f"/scenes/{s}/nodes")
-    out: list[tuple[int, np.ndarray]] = []
+    out: list[tuple[int | None, int, np.ndarray]] = []
     stack = [(as_index(n, len(nodes), "scene node", f"/scenes/{s}/nodes/{k}"), np.eye(4), 0)
              for k, n in enumerate(roots)]
     while stack:
@@ -77,8 +82,8 @@ def mesh_instances(doc: dict) -> list[tuple[int, np.ndarray]]:
         node = nodes[i]
         world = parent @ _node_matrix(nodes, i)
         if node.get("mesh") is not None:
-            out.append((as_index(node["mesh"], len(meshes), f"nodes[{i}].mesh",
-                                 f"/nodes/{i}/mesh"), world))
+            out.append((i, as_index(node["mesh"], len(meshes), f"nodes[{i}].mesh",
+                                    f"/nodes/{i}/mesh"), world))
         children = _array(node.get("children"), f"nodes[{i}].children", f"/nodes/{i}/children")
         for k, child in enumerate(children):
             stack.append((as_index(child, len(nodes), f"nodes[{i}].children",
@@ -114,10 +119,15 @@ def read_gltf_triangles(path: str | os.PathLike, *,
 
     For reading an anchor mesh supplied as ``.glb``/``.gltf`` (e.g. a TRELLIS export). Face
     order: meshes in scene traversal order, primitives and triangles in file order. Skins and
-    morph targets are not applied (the bind pose is used). Same hardening and errors as
-    :func:`~.reader.read_gltf`.
+    morph targets are not applied (the bind pose is used); a scene drawing one skinned and/or
+    morphed primitive keeps them as ``TriangleMesh.rig`` (:func:`.rig.read_rig`). Same
+    hardening and errors as :func:`~.reader.read_gltf`.
     """
     spath = os.fspath(path)
+    from .rig import read_rig
+
     with input_errors(spath, "mesh"):
-        mesh = scene_triangles(open_document(spath, max_bytes))
+        document = open_document(spath, max_bytes)
+        mesh = scene_triangles(document)
+        mesh.rig = read_rig(document, node_instances(document.doc))
     return mesh

@@ -37,10 +37,12 @@ from ...errors import GsverseError, UsageError
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                       SplatPrimitive, TriangleMesh, check_primitive)
 from ...quaternion import unit_quaternions
-from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, SH_C0, SHORT, UNSIGNED_BYTE, UNSIGNED_INT,
-                           UNSIGNED_SHORT)
+from ...rig import AnchorRig
+from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, NODE_VISIBILITY, SH_C0, SHORT,
+                           UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT)
 from .accessors import COMPONENT_DTYPES
 from .container import glb_bytes
+from .rig import RigOutput, write_rig
 from .reader import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
 
 __all__ = ["ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER", "QUANTIZE_OPTIONS", "BufferBuilder",
@@ -273,6 +275,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     b = BufferBuilder()
     meshes: list[pygltflib.Mesh | None] = [None] * (len(prims) + len(anchor_meshes))
     nodes: list[pygltflib.Node] = []
+    rigs: list[tuple[AnchorRig, pygltflib.Mesh, int]] = []
     for i, prim in enumerate(prims):
         encoded: _EncodedAnchors | None = None
         c = prim.splats
@@ -299,10 +302,12 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
                 pos = b.add(mesh.vertices, FLOAT, "VEC3", target=ARRAY_BUFFER, minmax=True)
                 itype = UNSIGNED_SHORT if len(mesh.vertices) < 65535 else UNSIGNED_INT
                 idx = b.add(mesh.faces.reshape(-1), itype, "SCALAR", target=ELEMENT_ARRAY_BUFFER)
-                meshes[m] = pygltflib.Mesh(primitives=[pygltflib.Primitive(
-                    attributes=pygltflib.Attributes(POSITION=pos), indices=idx,
-                    mode=TRIANGLES)], weights=None,
+                anchor_prim = pygltflib.Primitive(attributes=pygltflib.Attributes(POSITION=pos),
+                                                  indices=idx, mode=TRIANGLES)
+                meshes[m] = pygltflib.Mesh(primitives=[anchor_prim], weights=None,
                     name=f"{prim.name} anchor mesh" if prim.name else "anchor mesh")
+                if mesh.rig is not None:
+                    rigs.append((mesh.rig, meshes[m], m))
             khr.setdefault("extensions", {})[EXTENSION] = _write_anchors(
                 b, mesh.face_count, encoded, c, m, attrs[SCALE])
         primitive = pygltflib.Primitive(attributes=pygltflib.Attributes(**attrs),
@@ -310,14 +315,20 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
         meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
         nodes.append(pygltflib.Node(mesh=i, name=prim.name, children=None))
     meshes.extend(_collider_meshes(b, asset, anchor_mesh_index, meshes))
+    rigged = RigOutput()
+    for rig, gmesh, m in rigs:
+        write_rig(b.add, rig, gmesh, m, len(nodes) + len(rigged.nodes), rigged)
 
     carried = sorted({name for prim in prims for name in prim.khr.extensions})
-    used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried
+    used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried + \
+        ([NODE_VISIBILITY] if rigs else [])
     blob = b.finish()
     gltf = pygltflib.GLTF2(
         asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}"),
-        extensionsUsed=used, scene=0, scenes=[pygltflib.Scene(nodes=list(range(len(nodes))))],
-        nodes=nodes, meshes=meshes,
+        extensionsUsed=used, scene=0,
+        scenes=[pygltflib.Scene(nodes=list(range(len(nodes))) + rigged.roots)],
+        nodes=nodes + rigged.nodes, meshes=meshes, skins=rigged.skins,
+        animations=rigged.animations,
         accessors=[pygltflib.Accessor(**{"byteOffset": 0, "normalized": None, "min": None,
                                           "max": None, **acc}) for acc in b.accessors],
         bufferViews=[pygltflib.BufferView(**view) for view in b.views],

@@ -1,0 +1,91 @@
+"""The animation data of an animated anchor mesh (:class:`AnchorRig`): a skin, its joint node
+hierarchy, per-vertex joints and weights, morph targets and animations as sampler arrays.
+
+Held by :attr:`gsverse_format.model.TriangleMesh.rig`; read from a skinned/morphed glTF mesh
+(``--mesh character.glb``, :mod:`gsverse_format.io.gltf.rig`) and written back beside the anchor
+mesh (spec/README.md §Animated anchor meshes). Indices are the rig's own (into
+:attr:`AnchorRig.nodes`), never the source file's; a writer renumbers them.
+
+Spaces: the mesh's vertices are the un-skinned rest positions in the splat primitive's local
+space. ``root_matrix`` is the transform of the space the rig's root nodes live in (the frame
+change the converter applied), so the skinned vertex of glTF
+``Σ w_k · global(joint_k) · inverseBind_k · v`` with ``global`` starting from ``root_matrix``
+is in the splat primitive's local space as well.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+__all__ = ["RigNode", "RigChannel", "RigAnimation", "AnchorRig", "WEIGHTS_PATH"]
+
+#: ``RigChannel.path`` of the morph-target weights of the anchor mesh's node.
+WEIGHTS_PATH = "weights"
+
+
+@dataclass
+class RigNode:
+    """A node of the joint hierarchy: local ``matrix`` (4, 4) or T·R·S, and its children
+    (indices into :attr:`AnchorRig.nodes`)."""
+
+    name: str | None
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    matrix: np.ndarray | None = None
+    children: list[int] = field(default_factory=list)
+
+
+@dataclass
+class RigChannel:
+    """One animated property: ``node`` (index into the rig's nodes, or ``None`` for the
+    anchor mesh's node, whose only animated ``path`` is ``weights``), key ``times`` (K,),
+    ``values`` (K or 3K, n) and glTF ``interpolation``."""
+
+    node: int | None
+    path: str
+    times: np.ndarray
+    values: np.ndarray
+    interpolation: str = "LINEAR"
+
+
+@dataclass
+class RigAnimation:
+    name: str | None
+    channels: list[RigChannel]
+
+
+@dataclass
+class AnchorRig:
+    """Skin, morph targets and animations of an anchor mesh (see the module docstring)."""
+
+    nodes: list[RigNode] = field(default_factory=list)
+    roots: list[int] = field(default_factory=list)
+    #: skin: joint node indices, (J, 4, 4) inverse bind matrices (row-major), optional skeleton
+    joints: list[int] = field(default_factory=list)
+    inverse_bind: np.ndarray | None = None
+    skeleton: int | None = None
+    #: per vertex (V, 4) joint indices (into ``joints``) and weights
+    joints_0: np.ndarray | None = None
+    weights_0: np.ndarray | None = None
+    #: morph targets: POSITION deltas (V, 3) each, and the default weights
+    targets: list[np.ndarray] = field(default_factory=list)
+    weights: list[float] = field(default_factory=list)
+    animations: list[RigAnimation] = field(default_factory=list)
+    root_matrix: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def skinned(self) -> bool:
+        return bool(self.joints)
+
+    def transformed(self, linear: np.ndarray) -> "AnchorRig":
+        """The rig of the mesh whose vertices were mapped by the 3×3 ``linear`` (a frame
+        change): the roots' space gets ``linear``, the inverse bind matrices its inverse on
+        the right, the morph deltas ``linear``; skinned vertices move by ``linear`` too."""
+        m = np.eye(4)
+        m[:3, :3] = np.asarray(linear, dtype=np.float64)
+        inv = np.linalg.inv(m)
+        ibm = None if self.inverse_bind is None else self.inverse_bind @ inv
+        targets = [np.asarray(t, np.float64) @ m[:3, :3].T for t in self.targets]
+        return replace(self, inverse_bind=ibm, targets=targets, root_matrix=m @ self.root_matrix)
