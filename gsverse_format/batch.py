@@ -41,7 +41,7 @@ from typing import Any, Callable, Iterable
 
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
-from .progress import Progress
+from .progress import Progress, silenced_warnings
 
 __all__ = ["AssetSpec", "BatchTask", "AssetResult", "BatchReport", "DASK_RESOURCE",
            "MANIFEST_SUFFIXES", "collect", "read_manifest", "plan", "convert_one", "run_batch"]
@@ -356,11 +356,7 @@ def _error_line(exc: BaseException, input_path: str) -> str:
 
 def convert_one(task: BatchTask) -> AssetResult:
     """Convert one asset (in whichever process runs it); never raises for a bad asset."""
-    saved = os.environ.get("PYTHONWARNINGS")
-    with warnings.catch_warnings():
-        if task.quiet:
-            warnings.simplefilter("ignore")
-            os.environ["PYTHONWARNINGS"] = "ignore"  # child processes (the USD reader)
+    with silenced_warnings(task.quiet):  # also in child processes (the USD reader)
         try:
             if not task.overwrite and os.path.exists(task.output):
                 raise UsageError("output exists; use -w/--overwrite to replace it", task.output)
@@ -371,11 +367,6 @@ def convert_one(task: BatchTask) -> AssetResult:
         except Exception as exc:  # a failing asset is reported; the batch goes on
             return AssetResult(task.input, task.output, "failed", _error_line(exc, task.input))
         finally:
-            if task.quiet:
-                if saved is None:
-                    os.environ.pop("PYTHONWARNINGS", None)
-                else:
-                    os.environ["PYTHONWARNINGS"] = saved
             if _STOPPING:  # pragma: no cover - a local worker told to stop
                 os._exit(143)
 

@@ -1,9 +1,12 @@
 """A minimal terminal progress bar (stderr), silent when not on a terminal or when quiet."""
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
 import time
-from typing import TextIO
+import warnings
+from typing import Iterator, TextIO
 
 
 class Progress:
@@ -47,3 +50,23 @@ class Progress:
 
     def close(self) -> None:
         self._finish_line()
+
+
+@contextlib.contextmanager
+def silenced_warnings(quiet: bool) -> Iterator[None]:
+    """Under ``-q``: no Python warning in this process, nor in the processes it starts
+    (``PYTHONWARNINGS``), e.g. numba's TBB threading-layer warning. A no-op otherwise."""
+    if not quiet:
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    os.environ["PYTHONWARNINGS"] = "ignore"
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved

@@ -10,20 +10,19 @@ error, 130 interrupted. Errors are one line on stderr (``gsverse-convert: error:
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import shutil
 import sys
 import tempfile
-import warnings
-from typing import IO, Iterator
+from typing import IO
 
 from ..version import __version__
 from ..converters import SOURCES
 from ..pipeline import ConvertOptions, ConvertSummary, convert
 from ..errors import GsverseError, UsageError
 from ..progress import Progress
+from .boundary import run_command
 
 PROG = "gsverse-convert"
 #: ``--to`` choices (output suffixes without the dot) and those that can go to standard output.
@@ -214,26 +213,6 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
                           bake_poses=args.bake_poses)
 
 
-@contextlib.contextmanager
-def _warnings_silenced(quiet: bool) -> Iterator[None]:
-    """Under ``-q``: no Python warning here, nor in the processes started from here
-    (``PYTHONWARNINGS``), e.g. numba's TBB threading-layer warning."""
-    if not quiet:
-        yield
-        return
-    saved = os.environ.get("PYTHONWARNINGS")
-    os.environ["PYTHONWARNINGS"] = "ignore"
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            yield
-    finally:
-        if saved is None:
-            os.environ.pop("PYTHONWARNINGS", None)
-        else:
-            os.environ["PYTHONWARNINGS"] = saved
-
-
 def _sniff_stdin(head: bytes) -> str:
     """The suffix of what standard input holds, from its first bytes."""
     if head.startswith(b"ply\n") or head.startswith(b"ply\r\n"):
@@ -339,41 +318,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
-    label = args.paths[0]
-    try:
-        with _warnings_silenced(args.quiet):
-            if args.output_dir is not None:
-                return _batch(args, progress)
-            summary, out = _convert_single(args, parser, progress)
-    except UsageError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    except GsverseError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 1
-    except MemoryError:
-        progress.close()
-        print(f"{PROG}: error: {label}: out of memory", file=sys.stderr)
-        return 1
-    except Exception as exc:  # a bug, not bad input: still one line; GSVERSE_DEBUG=1 shows it all
-        progress.close()
-        if os.environ.get("GSVERSE_DEBUG"):
-            raise
-        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} "
-              f"(set GSVERSE_DEBUG=1 for a traceback, and please report it)".replace("\n", " "),
-              file=sys.stderr)
-        return 70
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"{PROG}: interrupted; no output written", file=sys.stderr)
-        return 130
-    if args.json:
-        print(json.dumps(summary.as_dict(), indent=2), file=out)
-    elif not args.quiet:
-        print("\n".join(summary.lines()), file=out)
-    return 0
+
+    def work() -> int:
+        if args.output_dir is not None:
+            return _batch(args, progress)
+        summary, out = _convert_single(args, parser, progress)
+        if args.json:
+            print(json.dumps(summary.as_dict(), indent=2), file=out)
+        elif not args.quiet:
+            print("\n".join(summary.lines()), file=out)
+        return 0
+
+    return run_command(PROG, args.paths[0], progress, work, quiet=args.quiet,
+                       interrupted="interrupted; no output written")
 
 
 if __name__ == "__main__":  # pragma: no cover

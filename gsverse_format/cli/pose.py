@@ -26,14 +26,14 @@ import math
 import os
 import sys
 import time as _time
-import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..errors import FormatError, GsverseError, UsageError
+from ..errors import FormatError, UsageError
 from ..progress import Progress
+from .boundary import run_command
 from ..version import __version__
 
 PROG = "gsverse-pose"
@@ -321,40 +321,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
-    try:
-        with warnings.catch_warnings():
-            if args.quiet:
-                warnings.simplefilter("ignore")
-            summary = run(args, progress)
-    except UsageError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    except GsverseError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 1
-    except MemoryError:
-        progress.close()
-        print(f"{PROG}: error: {args.asset}: out of memory", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
-    except Exception as exc:  # a bug, not bad input: one line; GSVERSE_DEBUG=1 shows it all
-        progress.close()
-        if os.environ.get("GSVERSE_DEBUG"):
-            raise
-        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} "
-              f"(set GSVERSE_DEBUG=1 for a traceback, and please report it)".replace("\n", " "),
-              file=sys.stderr)
-        return 70
-    if args.json:
-        print(json.dumps(summary.as_dict(), indent=2))
-    elif not args.quiet:
-        print("\n".join(summary.lines()))
-    return 0
+
+    def work() -> int:
+        summary = run(args, progress)
+        if args.json:
+            print(json.dumps(summary.as_dict(), indent=2))
+        elif not args.quiet:
+            print("\n".join(summary.lines()))
+        return 0
+
+    return run_command(PROG, args.asset, progress, work, quiet=args.quiet)
 
 
 if __name__ == "__main__":  # pragma: no cover

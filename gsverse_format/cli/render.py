@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import FormatError, GsverseError, UsageError
 from ..progress import Progress
+from .boundary import run_command
 from ..version import __version__
 
 PROG = "gsverse-render"
@@ -211,38 +212,18 @@ def run(args, progress: Progress) -> dict:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
-    try:
+
+    def work() -> int:
         summary = run(args, progress)
-    except UsageError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    except GsverseError as exc:
-        progress.close()
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 1
-    except MemoryError:
-        progress.close()
-        print(f"{PROG}: error: {args.asset}: out of memory", file=sys.stderr)
-        return 1
-    except Exception as exc:  # a bug, not bad input: still one line; GSVERSE_DEBUG=1 shows it all
-        progress.close()
-        if os.environ.get("GSVERSE_DEBUG"):
-            raise
-        print(f"{PROG}: internal error: {type(exc).__name__}: {exc} "
-              f"(set GSVERSE_DEBUG=1 for a traceback, and please report it)".replace("\n", " "),
-              file=sys.stderr)
-        return 70
-    except KeyboardInterrupt:
-        progress.close()
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return 130
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    elif not args.quiet:
-        print(f"{', '.join(summary['outputs'][:3])}{' ...' if len(summary['outputs']) > 3 else ''}: "
-              f"{summary['splats']} splats, {summary['pose']}, {summary['seconds']:.2f} s")
-    return 0
+        if args.json:
+            print(json.dumps(summary, indent=2))
+        elif not args.quiet:
+            outputs = summary["outputs"]
+            print(f"{', '.join(outputs[:3])}{' ...' if len(outputs) > 3 else ''}: "
+                  f"{summary['splats']} splats, {summary['pose']}, {summary['seconds']:.2f} s")
+        return 0
+
+    return run_command(PROG, args.asset, progress, work, quiet=args.quiet)
 
 
 if __name__ == "__main__":  # pragma: no cover
