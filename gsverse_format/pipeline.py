@@ -38,14 +38,15 @@ from .binding import bind_local
 from .converters import detect_source, get_source
 from .converters.base import SourceOptions, SourceResult, TrellisFrame, require_splats
 from .converters.reconstruct import reconstruct_mesh
-from .errors import BindingError, FormatError, GsverseError, UsageError
+from .errors import FormatError, GsverseError, UsageError
 from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, suffixes,
                           write_asset)
 from .model import (Anchoring, DeformationLaw, KhrProperties, LocalAnchors, SplatAsset,
                     SplatCloud, SplatPrimitive, TriangleMesh, prim_label, splat_problem)
 from .nearest import closest_points_on_triangles
 from .progress import Progress
-from .scene import anchor_scene, finish_physics, prepare_mesh, read_scene_meshes
+from .scene import (anchor_scene, finish_physics, input_stem, prepare_mesh,
+                    read_scene_meshes, with_static_rest)
 from .transform import rotate_mesh, rotate_splats
 
 __all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "to_gltf"]
@@ -498,23 +499,11 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         keep_idx = order[keep[order]]
     else:
         keep_idx = np.flatnonzero(keep)
-    far_idx = np.flatnonzero(~keep)
-
     primitives = []
-    name = os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
     if keep_idx.size:
         primitives.append(SplatPrimitive(splats.subset(keep_idx),
-                                         Anchoring(mesh, anchors.subset(keep_idx)), name,
-                                         result.khr))
-    if far_idx.size:
-        if options.drop_unanchored:
-            summary.dropped = int(far_idx.size)
-        else:
-            primitives.append(SplatPrimitive(splats.subset(far_idx), None, f"{name} static",
-                                             result.khr))
-    if not primitives:
-        raise BindingError(f"all {len(splats)} splats are farther than --max-distance from "
-                           f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}, so "
-                           f"--drop-unanchored leaves nothing to write (is the mesh in the "
-                           f"splats' frame?)", summary.input)
-    return SplatAsset(primitives)
+                                         Anchoring(mesh, anchors.subset(keep_idx)),
+                                         input_stem(summary), result.khr))
+    return with_static_rest(primitives, result, np.flatnonzero(~keep), options, summary,
+                            f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}",
+                            "is the mesh")

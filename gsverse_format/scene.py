@@ -195,16 +195,30 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
         else:
             summary.notes.append(f"no splat is anchored to {name} ({path}): its mesh is not "
                                  f"written")
-    far_idx = np.flatnonzero(~anchored)
-    stem = os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
+    return with_static_rest(primitives, result, np.flatnonzero(~anchored), options, summary,
+                            "every mesh", "are the meshes")
+
+
+def input_stem(summary: ConvertSummary) -> str:
+    """The name of the converted asset's primitives: the input's file stem."""
+    return os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
+
+
+def with_static_rest(primitives: list[SplatPrimitive], result: Any, far_idx: np.ndarray,
+                     options: ConvertOptions, summary: ConvertSummary, from_what: str,
+                     frame_question: str) -> SplatAsset:
+    """The asset of the anchored ``primitives`` and the splats that stay unanchored
+    (``far_idx``): one plain static primitive, or dropped with ``--drop-unanchored``; an asset
+    left with nothing is refused (``from_what``/``frame_question`` word the message)."""
+    splats = result.splats
     if far_idx.size:
         if options.drop_unanchored:
             summary.dropped = int(far_idx.size)
         else:
-            primitives.append(SplatPrimitive(splats.subset(far_idx), None, f"{stem} static",
-                                             result.khr))
+            primitives.append(SplatPrimitive(splats.subset(far_idx), None,
+                                             f"{input_stem(summary)} static", result.khr))
     if not primitives:
         raise BindingError(f"all {len(splats)} splats are farther than --max-distance from "
-                           f"every mesh, so --drop-unanchored leaves nothing to write (are the "
-                           f"meshes in the splats' frame?)", summary.input)
+                           f"{from_what}, so --drop-unanchored leaves nothing to write "
+                           f"({frame_question} in the splats' frame?)", summary.input)
     return SplatAsset(primitives)
