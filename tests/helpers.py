@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 from gsverse_format.model import SplatCloud, TriangleMesh
 
@@ -81,3 +81,75 @@ def extension_schema_validator():
         [(schema["$id"], schema), ("glTFProperty.schema.json", gltf_property)]])
     jsonschema.Draft202012Validator.check_schema(schema)
     return jsonschema.Draft202012Validator(schema, registry=registry)
+
+
+def gltf_accessor(g, i: int) -> np.ndarray:
+    """Accessor ``i`` of a pygltflib GLB as float64 (count, components), byteStride honoured."""
+    a = g.accessors[i]
+    view = g.bufferViews[a.bufferView]
+    n = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a.type]
+    dt = np.dtype({5126: "<f4", 5123: "<u2", 5121: "<u1"}[a.componentType])
+    blob = g.binary_blob()
+    start = (view.byteOffset or 0) + (a.byteOffset or 0)
+    stride = view.byteStride or dt.itemsize * n
+    return np.ndarray((a.count, n), dt, blob, start, (stride, dt.itemsize)).astype(np.float64)
+
+
+def numpy_skinning(g, node_i: int, t: float, animation: int = 0) -> np.ndarray:
+    """glTF morph + linear blend skinning of the mesh of node ``node_i`` at time ``t``
+    (LINEAR channels), written from the glTF spec in plain numpy and scipy: the tests' own
+    reference, independent of :mod:`gsverse_format.poses`."""
+    nodes = g.nodes
+    trs = {i: [np.array(n.translation or [0, 0, 0], float),
+               Rotation.from_quat(n.rotation or [0, 0, 0, 1]),
+               np.array(n.scale or [1, 1, 1], float)] for i, n in enumerate(nodes)}
+    anim = g.animations[animation]
+    mesh = g.meshes[nodes[node_i].mesh]
+    morph = np.array(mesh.weights or [], float)
+    for ch in anim.channels:
+        s = anim.samplers[ch.sampler]
+        keys, vals = gltf_accessor(g, s.input)[:, 0], gltf_accessor(g, s.output)
+        tc = float(np.clip(t, keys[0], keys[-1]))
+        n, path = ch.target.node, ch.target.path
+        if path == "weights" and n == node_i:
+            vals = vals.reshape(len(keys), -1)
+            morph = np.array([np.interp(tc, keys, vals[:, k]) for k in range(vals.shape[1])])
+        elif path == "rotation":
+            trs[n][1] = Slerp(keys, Rotation.from_quat(vals))([tc])[0]
+        elif path in ("translation", "scale"):
+            trs[n][0 if path == "translation" else 2] = np.array(
+                [np.interp(tc, keys, vals[:, k]) for k in range(3)])
+    parents = {c: i for i, n in enumerate(nodes) for c in (n.children or [])}
+
+    def local(i: int) -> np.ndarray:
+        if nodes[i].matrix:
+            return np.array(nodes[i].matrix, float).reshape(4, 4).T
+        m = np.eye(4)
+        m[:3, :3] = trs[i][1].as_matrix() @ np.diag(trs[i][2])
+        m[:3, 3] = trs[i][0]
+        return m
+
+    def world(i: int) -> np.ndarray:
+        return local(i) if i not in parents else world(parents[i]) @ local(i)
+
+    node = nodes[node_i]
+    skin = g.skins[node.skin]
+    ibm = gltf_accessor(g, skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
+    attrs = g.meshes[node.mesh].primitives[0].attributes
+    pos = gltf_accessor(g, attrs.POSITION)
+    for w, target in zip(morph, mesh.primitives[0].targets or []):
+        pos = pos + w * gltf_accessor(g, target["POSITION"])
+    jn, wt = gltf_accessor(g, attrs.JOINTS_0).astype(int), gltf_accessor(g, attrs.WEIGHTS_0)
+    mats = np.stack([world(j) @ ibm[k] for k, j in enumerate(skin.joints)])
+    homo = np.c_[pos, np.ones(len(pos))]
+    v = sum(wt[:, k, None] * np.einsum("nij,nj->ni", mats[jn[:, k]], homo) for k in range(4))
+    return v[:, :3]
+
+
+def anchor_foot_points(prim, vertices: np.ndarray) -> np.ndarray:
+    """The barycentric anchor point of every splat on the posed triangles (float64)."""
+    a = prim.anchoring.anchors
+    tri = np.asarray(vertices, np.float64)[prim.anchoring.mesh.faces.astype(np.intp)]
+    tri = tri[a.face_index.astype(np.intp)]
+    b = a.barycentrics.astype(np.float64)
+    return (1 - b[:, :1] - b[:, 1:]) * tri[:, 0] + b[:, :1] * tri[:, 1] + b[:, 1:] * tri[:, 2]

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 import pygltflib
-import pytest
-from scipy.spatial.transform import Rotation, Slerp
 
 import gsverse_format as gv
 from gsverse_format.cli.pose import main as pose_main
@@ -18,76 +16,9 @@ from gsverse_format.io.registry import FRAMES
 from gsverse_format.model import SplatAsset, SplatPrimitive, TriangleMesh
 from gsverse_format.validators.validate import Severity
 
-from helpers import surface_splats
+from helpers import anchor_foot_points, numpy_skinning, surface_splats
 
 TIMES = (0.3, 0.7)
-
-
-def _acc(g: pygltflib.GLTF2, i: int) -> np.ndarray:
-    a = g.accessors[i]
-    view = g.bufferViews[a.bufferView]
-    n = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}[a.type]
-    dt = np.dtype({5126: "<f4", 5123: "<u2", 5121: "<u1"}[a.componentType])
-    blob = g.binary_blob()
-    start = (view.byteOffset or 0) + (a.byteOffset or 0)
-    return np.frombuffer(blob, dt, a.count * n, start).reshape(a.count, n).astype(np.float64)
-
-
-def _skinned(g: pygltflib.GLTF2, node_i: int, t: float, animation: int = 0) -> np.ndarray:
-    """glTF LBS of the mesh of node ``node_i`` at time ``t`` (LINEAR channels)."""
-    nodes = g.nodes
-    trs = {i: [np.array(n.translation or [0, 0, 0], float),
-               Rotation.from_quat(n.rotation or [0, 0, 0, 1]),
-               np.array(n.scale or [1, 1, 1], float)] for i, n in enumerate(nodes)}
-    anim = g.animations[animation]
-    mesh = g.meshes[nodes[node_i].mesh]
-    morph = np.array(mesh.weights or [], float)
-    for ch in anim.channels:
-        s = anim.samplers[ch.sampler]
-        keys, vals = _acc(g, s.input)[:, 0], _acc(g, s.output)
-        tc = float(np.clip(t, keys[0], keys[-1]))
-        n, path = ch.target.node, ch.target.path
-        if path == "weights" and n == node_i:
-            vals = vals.reshape(len(keys), -1)
-            morph = np.array([np.interp(tc, keys, vals[:, k]) for k in range(vals.shape[1])])
-        elif path == "rotation":
-            trs[n][1] = Slerp(keys, Rotation.from_quat(vals))([tc])[0]
-        elif path in ("translation", "scale"):
-            trs[n][0 if path == "translation" else 2] = np.array(
-                [np.interp(tc, keys, vals[:, k]) for k in range(3)])
-    parents = {c: i for i, n in enumerate(nodes) for c in (n.children or [])}
-
-    def local(i: int) -> np.ndarray:
-        if nodes[i].matrix:
-            return np.array(nodes[i].matrix, float).reshape(4, 4).T
-        m = np.eye(4)
-        m[:3, :3] = trs[i][1].as_matrix() @ np.diag(trs[i][2])
-        m[:3, 3] = trs[i][0]
-        return m
-
-    def world(i: int) -> np.ndarray:
-        return local(i) if i not in parents else world(parents[i]) @ local(i)
-
-    node = nodes[node_i]
-    skin = g.skins[node.skin]
-    ibm = _acc(g, skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
-    attrs = g.meshes[node.mesh].primitives[0].attributes
-    pos = _acc(g, attrs.POSITION)
-    for w, target in zip(morph, mesh.primitives[0].targets or []):
-        pos = pos + w * _acc(g, target["POSITION"])
-    jn, wt = _acc(g, attrs.JOINTS_0).astype(int), _acc(g, attrs.WEIGHTS_0)
-    mats = np.stack([world(j) @ ibm[k] for k, j in enumerate(skin.joints)])
-    homo = np.c_[pos, np.ones(len(pos))]
-    v = sum(wt[:, k, None] * np.einsum("nij,nj->ni", mats[jn[:, k]], homo) for k in range(4))
-    return v[:, :3]
-
-
-def _foot_points(prim, vertices: np.ndarray) -> np.ndarray:
-    a = prim.anchoring.anchors
-    tri = np.asarray(vertices, np.float64)[prim.anchoring.mesh.faces.astype(np.intp)]
-    tri = tri[a.face_index.astype(np.intp)]
-    b = a.barycentrics.astype(np.float64)
-    return (1 - b[:, :1] - b[:, 1:]) * tri[:, 0] + b[:, :1] * tri[:, 1] + b[:, 1:] * tri[:, 2]
 
 
 def _areas(v: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -124,10 +55,10 @@ def _check_asset(out, tmp_path, n_joints: int) -> None:
     assert pose_main([str(out), "--times", *map(str, TIMES), "-o", str(posed_dir), "-q"]) == 0
     moved = 0.0
     for i, t in enumerate(TIMES):
-        v = _skinned(g, users[0], t)
+        v = numpy_skinning(g, users[0], t)
         posed = gv.read(posed_dir / f"{out.stem}_f{i:04d}.ply").primitives[0].splats.means
         posed = posed[:len(prim.splats)]    # the anchored primitive comes first
-        d = np.linalg.norm(posed - _foot_points(prim, v), axis=1)
+        d = np.linalg.norm(posed - anchor_foot_points(prim, v), axis=1)
         # the stated distance: |normal offset| along the scaled normal of the affine law,
         # |m| = sqrt(a_current / a_rest) (spec §Remap: the local profile)
         f = prim.anchoring.anchors.face_index.astype(np.intp)

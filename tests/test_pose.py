@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import json
 import os
-import struct
 
 import numpy as np
+import pygltflib
 import pytest
-from scipy.spatial.transform import Rotation, Slerp
 
 import gsverse_format as gv
 from gsverse_format.cli.pose import main
@@ -23,7 +22,7 @@ from gsverse_format.poses import (GltfAnimation, Instance, parse_deformations, r
                                   read_sequence, read_vat, sample_channel, write_vat)
 from gsverse_format.poses.analytic import QuickLook
 
-from helpers import bumpy_sphere, surface_splats
+from helpers import anchor_foot_points, bumpy_sphere, numpy_skinning, surface_splats
 from source_fixtures import write_obj
 
 PREFIX = "gsverse-pose: error: "
@@ -36,15 +35,6 @@ def _anchored(mesh: TriangleMesh, path, n: int = 400, seed: int = 0, offset: flo
     anchoring = gv.bind(cloud, mesh)
     gv.write(SplatAsset([SplatPrimitive(cloud, anchoring, "obj")]), path)
     return gv.read(path)
-
-
-def _foot_points(prim, vertices: np.ndarray) -> np.ndarray:
-    """The barycentric anchor point of every splat on the posed triangles (float64)."""
-    a = prim.anchoring.anchors
-    tri = np.asarray(vertices, np.float64)[prim.anchoring.mesh.faces.astype(np.intp)]
-    tri = tri[a.face_index.astype(np.intp)]
-    b = a.barycentrics.astype(np.float64)
-    return (1 - b[:, :1] - b[:, 1:]) * tri[:, 0] + b[:, :1] * tri[:, 1] + b[:, 1:] * tri[:, 2]
 
 
 @pytest.fixture
@@ -68,63 +58,10 @@ def tube_asset(tmp_path):
 # ---------------------------------------------------------------------------- Fox (real asset)
 
 def _independent_fox_skin(fox_path, animation: int, times):
-    """Skinned Fox vertices at ``times``: glTF LBS written from the spec, nothing shared."""
-    data = open(fox_path, "rb").read()
-    json_len, = struct.unpack_from("<I", data, 12)
-    doc = json.loads(data[20:20 + json_len])
-    bin_start = 20 + json_len + 8
-    blob = data[bin_start:]
-    ncomp = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
-    dtypes = {5126: "<f4", 5123: "<u2", 5121: "<u1"}
-
-    def acc(i):
-        a = doc["accessors"][i]
-        view = doc["bufferViews"][a["bufferView"]]
-        dt = np.dtype(dtypes[a["componentType"]])
-        n = ncomp[a["type"]]
-        stride = view.get("byteStride", dt.itemsize * n)
-        start = view.get("byteOffset", 0) + a.get("byteOffset", 0)
-        out = np.ndarray((a["count"], n), dt, blob, start, (stride, dt.itemsize))
-        return out.astype(np.float64)
-
-    nodes = doc["nodes"]
-    anim = doc["animations"][animation]
-    parents = {c: i for i, n in enumerate(nodes) for c in n.get("children", [])}
-    skin = doc["skins"][0]
-    ibm = acc(skin["inverseBindMatrices"]).reshape(-1, 4, 4).transpose(0, 2, 1)
-    attrs = doc["meshes"][0]["primitives"][0]["attributes"]
-    pos, jn, wt = acc(attrs["POSITION"]), acc(attrs["JOINTS_0"]).astype(int), acc(attrs["WEIGHTS_0"])
-    out = []
-    for t in times:
-        trs = {i: [np.array(n.get("translation", [0, 0, 0]), float),
-                   Rotation.from_quat(n.get("rotation", [0, 0, 0, 1])),
-                   np.array(n.get("scale", [1, 1, 1]), float)] for i, n in enumerate(nodes)}
-        for ch in anim["channels"]:
-            s = anim["samplers"][ch["sampler"]]
-            keys, vals = acc(s["input"])[:, 0], acc(s["output"])
-            tc = float(np.clip(t, keys[0], keys[-1]))
-            node, path = ch["target"]["node"], ch["target"]["path"]
-            if path == "rotation":
-                trs[node][1] = Slerp(keys, Rotation.from_quat(vals))([tc])[0]
-            else:
-                trs[node][0 if path == "translation" else 2] = np.array(
-                    [np.interp(tc, keys, vals[:, k]) for k in range(3)])
-
-        def local(i):
-            m = np.eye(4)
-            m[:3, :3] = trs[i][1].as_matrix() @ np.diag(trs[i][2])
-            m[:3, 3] = trs[i][0]
-            return m
-
-        def world(i):
-            return local(i) if i not in parents else world(parents[i]) @ local(i)
-
-        joints = np.stack([world(j) @ ibm[k] for k, j in enumerate(skin["joints"])])
-        homo = np.c_[pos, np.ones(len(pos))]
-        v = sum(wt[:, k, None] * np.einsum("nij,nj->ni", joints[jn[:, k]], homo)
-                for k in range(4))
-        out.append(v[:, :3])
-    return out
+    """Skinned Fox vertices at ``times`` from the tests' own numpy skinning."""
+    g = pygltflib.GLTF2().load(str(fox_path))
+    node = next(i for i, n in enumerate(g.nodes) if n.mesh == 0 and n.skin is not None)
+    return [numpy_skinning(g, node, t, animation) for t in times]
 
 
 def test_fox_posed_splats_follow_independent_skinning(shared_data, tmp_path):
@@ -153,7 +90,7 @@ def test_fox_posed_splats_follow_independent_skinning(shared_data, tmp_path):
     for i, v in enumerate(skinned):
         posed = gv.read(out / f"fox_f{i:04d}.ply").primitives[0].splats.means
         # distance to the skinned mesh <= distance to the splat's own skinned triangle point
-        d = np.linalg.norm(posed - _foot_points(prim, v), axis=1)
+        d = np.linalg.norm(posed - anchor_foot_points(prim, v), axis=1)
         assert np.all(d <= stated), (times[i], d.max(), stated.max())
         moved = max(moved, float(np.abs(posed - prim.splats.means).max()))
     assert moved > 0.05 * diag         # the walk really moves the splats
@@ -168,7 +105,7 @@ def test_fox_posed_splats_follow_independent_skinning(shared_data, tmp_path):
     posed = gv.read(tmp_path / "glb" / files[6])
     assert posed.anchored == [] and len(posed.primitives[0].splats) == len(cloud)
     v6 = _independent_fox_skin(fox, 1, [0.5])[0]
-    assert np.all(np.linalg.norm(posed.primitives[0].splats.means - _foot_points(prim, v6),
+    assert np.all(np.linalg.norm(posed.primitives[0].splats.means - anchor_foot_points(prim, v6),
                                  axis=1) <= stated)
     cache = read_vat(vat, rest=prim.anchoring.mesh.vertices)
     np.testing.assert_allclose(cache.times, np.arange(9) / 12.0)
