@@ -6,11 +6,15 @@ it to check that the benchmarks work, not their timings).
 
 Sections: remap speed (numpy reference and fast path against the memory-bandwidth floor),
 nearest-triangle binding against Open3D and trimesh (``benchmarks/binding.py``, run as a
-separate process), ``gsverse-convert`` end to end against plain reading and writing,
-validation time (``benchmarks/validate.py``, a separate process), peak memory, accuracy against
-analytic deformations across profiles, anchor resolutions and quantizations with the cost of
-each point, the stretch comparison with a VR-GS-style cage, and the CPU renderer's speed with
-the remap's accuracy in image space (PSNR/SSIM, ``benchmarks/render.py``).
+separate process), ``gsverse-convert`` end to end against PlayCanvas splat-transform with its
+scaling (``--sizes``),
+validation time (``benchmarks/validate.py``, a separate process), the refusal of hostile
+inputs against the readers' limits (``benchmarks/hostile.py``, a separate process), the file
+size of anchored assets against plain KHR (``benchmarks/size.py``, a separate process), peak
+memory, accuracy against analytic deformations across profiles, anchor resolutions and
+quantizations with the cost of each point, the stretch comparison with a VR-GS-style cage,
+and the CPU renderer's speed with the remap's accuracy in image space (PSNR/SSIM,
+``benchmarks/render.py``).
 """
 from __future__ import annotations
 
@@ -23,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-SECTIONS = ("remap", "binding", "convert", "validate", "accuracy", "render")
+SECTIONS = ("remap", "binding", "convert", "validate", "hostile", "size", "accuracy", "render")
 HERE = Path(__file__).resolve().parent
 
 
@@ -84,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--only", nargs="+", choices=SECTIONS, help="run only these sections")
     p.add_argument("--skip", nargs="+", choices=SECTIONS, default=[], help="skip these sections")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
+    from .convert import SIZES as convert_sizes
+
+    p.add_argument("--sizes", nargs="+", choices=list(convert_sizes),
+                   help="splat counts of the convert/validate scaling table (default 100k 1M 4M)")
     args = p.parse_args(argv)
     log = (lambda *a, **k: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
     sections = [s for s in (args.only or SECTIONS) if s not in args.skip]
@@ -102,9 +110,13 @@ def main(argv: list[str] | None = None) -> int:
     if "convert" in sections:
         from . import convert
 
-        res["convert"] = convert.run(quick, log)
+        res["convert"] = convert.run(quick, log, sizes=args.sizes)
     if "validate" in sections:
         res["validate"] = _external("validate", ["--quick"] if quick else [], log)
+    if "hostile" in sections:
+        res["hostile"] = _external("hostile", ["--quick"] if quick else [], log)
+    if "size" in sections:
+        res["size"] = _external("size", ["--quick"] if quick else [], log)
     if "accuracy" in sections:
         from . import accuracy
 

@@ -1,20 +1,38 @@
-"""``gsverse-convert`` end to end against reading and writing the same files alone.
+"""``gsverse-convert`` against PlayCanvas ``splat-transform`` on the same file, and how it scales.
 
-Input: a 3DGS PLY (SH degree 3) of surface splats on a bumpy bar and the bar's mesh as a binary
-PLY (``--quick``: 20k splats, ~6k faces; full: 500k splats, ~41k faces). Timed:
+Input: a 3DGS PLY (SH degree 3, with normals: 62 float properties, 248 bytes per splat) of
+surface splats on a bumpy bar, and the bar's mesh as a binary PLY (full run: 1M splats, 248 MB,
+and a 100,000-face mesh; ``--quick``: 20k splats, ~6k faces).
 
-* ``gsverse-convert splats.ply out.glb --mesh mesh.ply`` as a fresh process (interpreter start,
-  imports, reading, binding, writing), with its peak resident memory;
-* the same conversion in-process (:func:`gsverse_format.pipeline.convert`, imports done);
-* reading the input PLY, reading the mesh and writing the converted asset's GLB, each alone
-  (in-process), and all three together in a fresh process with its peak resident memory.
+Side by side, each command a fresh process (start-up and imports included), median of the
+repetitions, peak resident memory of the process:
 
-The difference between the conversion and the plain reading + writing is what anchoring costs
-(nearest-triangle binding, sorting by face, the rest-pose check).
+* PlayCanvas ``splat-transform`` (npm ``@playcanvas/splat-transform``, installed with
+  ``npm ci`` in ``benchmarks/js``), PLY → GLB;
+* ``gsverse-convert --plain`` (format only: the same PLY → ``KHR_gaussian_splatting`` GLB);
+* ``gsverse-convert --mesh`` (anchored to the mesh: binding, sorting, the anchor accessors);
+
+with the ratios the goals are stated in: plain / splat-transform, anchored / plain, and each
+peak RSS / the input file's size. Then where the memory of the plain conversion goes, stage by
+stage (numpy's allocations traced by ``tracemalloc``, the process's resident and peak memory
+after each stage), and a scaling table (``--sizes``, default 100k, 1M, 4M splats on the same
+mesh): plain and anchored conversion and ``gsverse-validate`` of the anchored output, with the
+time per splat.
+
+Peak RSS is measured by a small launcher process that starts the command and reads
+``getrusage(RUSAGE_CHILDREN)`` after it exits: the child inherits only the launcher's few MiB
+as its starting high-water mark (a child forked from this benchmark process directly would
+inherit this process's).
+
+``python -m benchmarks.convert [--quick] [--sizes 100k 1M 4M] [--repeat N]`` prints the tables.
 """
 from __future__ import annotations
 
+import argparse
+import json
 import os
+import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -23,120 +41,406 @@ from pathlib import Path
 
 import numpy as np
 
-from .timing import measure
+HERE = Path(__file__).resolve().parent
+#: The splat-transform command line tool, after ``npm ci`` in ``benchmarks/js``.
+SPLAT_TRANSFORM = HERE / "js" / "node_modules" / "@playcanvas" / "splat-transform" / "bin" / "cli.mjs"
+#: Scaling sizes by name.
+SIZES = {"10k": 10_000, "20k": 20_000, "100k": 100_000, "250k": 250_000, "1M": 1_000_000,
+         "2M": 2_000_000, "4M": 4_000_000}
+DEFAULT_SIZES = ("100k", "1M", "4M")
+QUICK_SIZES = ("10k", "20k")
+#: Splats generated at a time (bounds the generator's float64 temporaries).
+_CHUNK = 250_000
 
-_IO_SNIPPET = """
-import sys, time
-from gsverse_format.io.ply import read_splat_ply
-from gsverse_format.io.mesh import read_mesh
-from gsverse_format.io.gltf import read_gltf, write_gltf
+_LAUNCHER = """
+import os, resource, subprocess, sys
+with open(sys.argv[1], "w") as out:
+    rc = subprocess.call(sys.argv[2:])
+    out.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
+sys.exit(rc)
+"""
+
+_STAGES = """
+import json, os, sys, time, tracemalloc
+def rss():
+    out = {}
+    for line in open("/proc/self/status"):
+        if line.startswith(("VmRSS:", "VmHWM:")):
+            out[line.split(":")[0]] = int(line.split()[1]) / 1024.0
+    return out
 t0 = time.perf_counter()
-asset = read_gltf(sys.argv[3])
-t1 = time.perf_counter()
-read_splat_ply(sys.argv[1]); read_mesh(sys.argv[2]); write_gltf(asset, sys.argv[4])
-print(t1 - t0, time.perf_counter() - t1)
+from gsverse_format.io.registry import FRAMES, rotate_asset, write_asset
+from gsverse_format.io.ply import read_ply_asset
+rows = []
+def stage(name, fn):
+    tracemalloc.start()
+    t = time.perf_counter()
+    value = fn()
+    seconds = time.perf_counter() - t
+    current, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    rows.append(dict(stage=name, seconds=seconds, traced_peak_mb=peak / 2**20,
+                     traced_kept_mb=current / 2**20, **rss()))
+    return value
+rows.append(dict(stage="start-up and imports", seconds=time.perf_counter() - t0,
+                 traced_peak_mb=0.0, traced_kept_mb=0.0, **rss()))
+asset = stage("read the PLY (file frame)", lambda: read_ply_asset(sys.argv[1]))
+asset = stage("frame change into glTF", lambda: rotate_asset(asset, FRAMES["3dgs"].to_gltf))
+stage("write the GLB", lambda: write_asset(asset, sys.argv[2], frame_change=False))
+print(json.dumps(rows))
 """
 
 
-def _vm_hwm_kib(pid: int) -> int | None:
-    try:
-        with open(f"/proc/{pid}/status") as fh:
-            for line in fh:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1])
-    except (OSError, ValueError):
-        pass
-    return None
+_ANCHORED_STAGES = _STAGES.split("rows = []")[0] + """
+from gsverse_format.binding import bind_local
+from gsverse_format.model import Anchoring, SplatAsset, SplatPrimitive
+from gsverse_format.pipeline import load_source
+import numpy as np
+rows = []
+def stage(name, fn):
+    tracemalloc.start()
+    t = time.perf_counter()
+    value = fn()
+    seconds = time.perf_counter() - t
+    current, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    rows.append(dict(stage=name, seconds=seconds, traced_peak_mb=peak / 2**20,
+                     traced_kept_mb=current / 2**20, **rss()))
+    return value
+rows.append(dict(stage="start-up and imports", seconds=time.perf_counter() - t0,
+                 traced_peak_mb=0.0, traced_kept_mb=0.0, **rss()))
+result = stage("read PLY and mesh, frame change", lambda: load_source("3dgs", sys.argv[1], sys.argv[3]))
+bound = stage("bind to the nearest triangles", lambda: bind_local(result.splats, result.mesh))
+order = np.argsort(bound.anchors.face_index, kind="stable")
+def _sort():   # as gsverse-convert does: the splats reordered in place, the anchors copied
+    result.splats.permute(order)
+    return result.splats, bound.anchors.subset(order)
+splats, anchors = stage("sort by face (in place)", _sort)
+mesh = result.mesh
+del result, bound
+asset = SplatAsset([SplatPrimitive(splats, Anchoring(mesh, anchors), "splats")])
+stage("write the GLB", lambda: write_asset(asset, sys.argv[2], frame_change=False))
+print(json.dumps(rows))
+"""
 
 
 def run_process(args: list[str], cwd: str | None = None, env: dict | None = None) -> dict:
-    """Run a command; wall seconds, exit status, peak RSS (MiB) and its output.
-
-    The peak is the child's own high-water mark (``VmHWM`` in ``/proc/<pid>/status``, polled
-    every 20 ms until it exits). ``ru_maxrss`` from ``wait4`` is not used: on Linux a child
-    started by fork/exec inherits the parent's peak in it.
-    """
-    t0 = time.perf_counter()
-    peak = None
-    with tempfile.TemporaryFile() as out:
-        p = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=cwd, env=env)
-        while True:
-            pid, status, usage = os.wait4(p.pid, os.WNOHANG)
-            if pid:
-                break
-            hwm = _vm_hwm_kib(p.pid)
-            if hwm is not None:
-                peak = hwm if peak is None else max(peak, hwm)
-            time.sleep(0.02)
-        p.returncode = os.waitstatus_to_exitcode(status)
-        wall = time.perf_counter() - t0
-        out.seek(0)
-        text = out.read().decode("utf-8", "replace")
-    return {"wall_s": wall, "rc": p.returncode,
-            "peak_rss_mb": (peak / 1024.0) if peak is not None else float("nan"), "output": text}
+    """Run a command as a fresh process; wall seconds, exit status, peak RSS (MiB) and its
+    output. The peak comes from a launcher (see the module docstring); the wall time includes
+    the launcher's start, a few tens of milliseconds, the same for every command."""
+    with tempfile.TemporaryDirectory() as d:
+        peak_file = os.path.join(d, "peak")
+        with tempfile.TemporaryFile() as out:
+            t0 = time.perf_counter()
+            p = subprocess.run([sys.executable, "-c", _LAUNCHER, peak_file, *args], stdout=out,
+                               stderr=subprocess.STDOUT, cwd=cwd, env=env)
+            wall = time.perf_counter() - t0
+            out.seek(0)
+            text = out.read().decode("utf-8", "replace")
+        try:
+            peak = int(Path(peak_file).read_text()) / 1024.0
+        except (OSError, ValueError):
+            peak = float("nan")
+    return {"wall_s": wall, "rc": p.returncode, "peak_rss_mb": peak, "output": text}
 
 
-def run(quick: bool = False, log=print, workdir: str | None = None) -> dict:
-    from gsverse_format.pipeline import ConvertOptions, convert
-    from gsverse_format.io.gltf import read_gltf, write_gltf
-    from gsverse_format.io.mesh import read_mesh
-    from gsverse_format.io.ply import read_splat_ply, write_splat_ply
+def _env() -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE.parent), env.get("PYTHONPATH")]))
+    return env
+
+
+def _python(module_main: str, *args: str) -> list[str]:
+    return [sys.executable, "-c", f"from {module_main} import main; raise SystemExit(main())",
+            *args]
+
+
+def splat_transform_problem() -> str | None:
+    """Why splat-transform cannot run here, or None."""
+    if shutil.which("node") is None:
+        return "node is not on PATH"
+    if not SPLAT_TRANSFORM.is_file():
+        return "not installed: run `npm ci` in benchmarks/js"
+    return None
+
+
+def make_mesh(quick: bool):
+    from .accuracy import bar_mesh
+
+    return bar_mesh(48, 60) if quick else bar_mesh(200, 251)   # ~6k or ~100k faces
+
+
+def write_inputs(folder: Path, mesh, n: int, seed: int = 3) -> tuple[Path, Path]:
+    """``splats.ply`` (``n`` SH-degree-3 splats with normals) and ``mesh.ply`` in ``folder``."""
+    from gsverse_format.io.ply import write_splat_ply
     from gsverse_format.model import SplatCloud
 
-    from .accuracy import bar_mesh, surface_object
+    from .accuracy import surface_object
 
-    t_start = time.perf_counter()
-    n = 20_000 if quick else 500_000
-    mesh = bar_mesh(48, 60) if quick else bar_mesh(128, 160)
-    cloud = surface_object(mesh, n, seed=3)
-    rng = np.random.default_rng(4)
-    cloud = SplatCloud(cloud.means, cloud.rotations, cloud.scales, rng.uniform(0.1, 1.0, n),
-                       rng.normal(0, 0.3, (n, 16, 3)))
-    tmp = tempfile.TemporaryDirectory(dir=workdir)
-    d = Path(tmp.name)
-    splats, mesh_path, out, out2 = d / "splats.ply", d / "mesh.ply", d / "out.glb", d / "io.glb"
-    write_splat_ply(cloud, splats)
+    parts = []
+    for i, start in enumerate(range(0, n, _CHUNK)):
+        m = min(_CHUNK, n - start)
+        c = surface_object(mesh, m, seed=seed + i)
+        rng = np.random.default_rng(seed + 1000 + i)
+        parts.append(SplatCloud(c.means, c.rotations, c.scales,
+                                rng.uniform(0.1, 1.0, m).astype(np.float32),
+                                rng.normal(0, 0.3, (m, 16, 3)).astype(np.float32)))
+        del c
+    cloud = SplatCloud.concatenate(parts) if len(parts) > 1 else parts[0]
+    del parts
+    splats, mesh_path = folder / "splats.ply", folder / "mesh.ply"
+    write_splat_ply(cloud, splats, normals=True)
+    del cloud
     import trimesh
 
     trimesh.Trimesh(mesh.vertices, mesh.faces, process=False).export(mesh_path)
-    log(f"convert: {n} splats, {mesh.face_count} faces")
-    res = {"n_splats": n, "n_faces": mesh.face_count,
-           "input_mb": splats.stat().st_size / 2**20}
-    cmd = [sys.executable, "-c", "from gsverse_format.cli.convert import main; raise SystemExit(main())",
-           str(splats), str(out), "--mesh", str(mesh_path), "-q", "-w"]
-    runs = [run_process(cmd) for _ in range(1 if quick else 3)]
-    if any(r["rc"] != 0 for r in runs):
-        res["error"] = runs[-1]["output"][-2000:]
-        tmp.cleanup()
-        return res
-    res["cli_wall_s"] = float(np.median([r["wall_s"] for r in runs]))
-    res["cli_peak_rss_mb"] = max(r["peak_rss_mb"] for r in runs)
-    res["output_mb"] = out.stat().st_size / 2**20
-    baseline = [sys.executable, "-c", _IO_SNIPPET, str(splats), str(mesh_path), str(out), str(out2)]
-    io_runs = [run_process(baseline) for _ in range(1 if quick else 3)]
-    res["io_process_peak_rss_mb"] = max(r["peak_rss_mb"] for r in io_runs)
-    # The baseline process also reads the converted GLB (to have the asset to write); that
-    # reading is measured inside it and taken out of its wall time.
-    extra = [float(r["output"].strip().splitlines()[-1].split()[0]) for r in io_runs]
-    inner = [float(r["output"].strip().splitlines()[-1].split()[1]) for r in io_runs]
-    res["io_process_wall_s"] = float(np.median([r["wall_s"] - e for r, e in zip(io_runs, extra)]))
-    res["io_process_inner_s"] = float(np.median(inner))
-    empty = run_process([sys.executable, "-c", "import gsverse_format.cli.convert"])
-    res["import_s"] = empty["wall_s"]
+    return splats, mesh_path
 
-    reps = 1 if quick else 3
-    t = measure(lambda: convert(str(splats), str(out), ConvertOptions(mesh=str(mesh_path))),
-                repeat=1, batches=reps, warmup=1)
-    res["convert_s"] = t.median
-    res["convert_contended"] = t.contended
-    asset = read_gltf(out)
-    t_ply = measure(lambda: read_splat_ply(splats), repeat=1, batches=reps, warmup=1)
-    t_mesh = measure(lambda: read_mesh(mesh_path), repeat=1, batches=reps, warmup=1)
-    t_glb = measure(lambda: write_gltf(asset, out2), repeat=1, batches=reps, warmup=1)
-    res["read_ply_s"], res["read_mesh_s"], res["write_glb_s"] = t_ply.median, t_mesh.median, t_glb.median
-    res["io_s"] = t_ply.median + t_mesh.median + t_glb.median
-    res["overhead_ratio"] = res["convert_s"] / res["io_s"]
+
+def _median_run(cmd: list[str], repeat: int, output: Path) -> dict:
+    runs = []
+    for _ in range(repeat):
+        if output.exists():
+            output.unlink()
+        runs.append(run_process(cmd, env=_env()))
+        if runs[-1]["rc"] != 0:
+            return {"error": runs[-1]["output"][-2000:], "command": " ".join(cmd)}
+    return {"wall_s": float(np.median([r["wall_s"] for r in runs])),
+            "best_s": float(min(r["wall_s"] for r in runs)),
+            "peak_rss_mb": float(max(r["peak_rss_mb"] for r in runs)),
+            "output_mb": output.stat().st_size / 2**20}
+
+
+def head_to_head(folder: Path, splats: Path, mesh_path: Path, repeat: int, log) -> dict:
+    """The three conversions of the same PLY, side by side."""
+    res: dict = {}
+    problem = splat_transform_problem()
+    if problem is None:
+        out = folder / "splat-transform.glb"
+        log("convert: splat-transform PLY -> GLB")
+        res["splat_transform"] = _median_run(
+            ["node", str(SPLAT_TRANSFORM), "-q", "-w", str(splats), str(out)], repeat, out)
+        version = subprocess.run(["node", str(SPLAT_TRANSFORM), "--version"],
+                                 capture_output=True, text=True)
+        found = re.search(r"\d+\.\d+\.\d+", version.stdout + version.stderr)
+        res["splat_transform_version"] = found.group(0) if found else ""
+    else:
+        res["splat_transform"] = {"skipped": problem}
+    plain, anchored = folder / "plain.glb", folder / "anchored.glb"
+    log("convert: gsverse-convert --plain")
+    res["plain"] = _median_run(_python("gsverse_format.cli.convert", str(splats), str(plain),
+                                       "--plain", "-q", "-w"), repeat, plain)
+    log("convert: gsverse-convert --mesh")
+    res["anchored"] = _median_run(_python("gsverse_format.cli.convert", str(splats), str(anchored),
+                                          "--mesh", str(mesh_path), "-q", "-w"), repeat, anchored)
+    return res
+
+
+def memory_stages(splats: Path, folder: Path, mesh_path: Path | None = None) -> list[dict]:
+    """Where the memory of a plain conversion goes (of an anchored one, given the mesh),
+    stage by stage (a fresh process)."""
+    out = folder / "stages.glb"
+    script = _STAGES if mesh_path is None else _ANCHORED_STAGES
+    r = subprocess.run([sys.executable, "-c", script, str(splats), str(out),
+                        *([str(mesh_path)] if mesh_path is not None else [])],
+                       capture_output=True, text=True, env=_env())
+    if r.returncode != 0:
+        return [{"stage": "error", "error": r.stderr[-1000:]}]
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def scaling(folder: Path, mesh, sizes: list[str], log) -> list[dict]:
+    """Plain and anchored conversion and validation at each size (one run each)."""
+    rows = []
+    for name in sizes:
+        n = SIZES[name]
+        d = folder / f"scale-{name}"
+        d.mkdir()
+        log(f"convert: scaling, {name} splats")
+        splats, mesh_path = write_inputs(d, mesh, n, seed=11)
+        row: dict = {"size": name, "n_splats": n, "input_mb": splats.stat().st_size / 2**20}
+        plain, anchored = d / "plain.glb", d / "anchored.glb"
+        runs = {
+            "plain": _python("gsverse_format.cli.convert", str(splats), str(plain), "--plain",
+                             "-q", "-w"),
+            "anchored": _python("gsverse_format.cli.convert", str(splats), str(anchored),
+                                "--mesh", str(mesh_path), "-q", "-w"),
+            "validate": _python("gsverse_format.validators.cli", str(anchored)),
+        }
+        for key, cmd in runs.items():
+            r = run_process(cmd, env=_env())
+            if r["rc"] != 0:
+                row[f"{key}_error"] = r["output"][-500:]
+                continue
+            row[f"{key}_s"] = r["wall_s"]
+            row[f"{key}_us_per_splat"] = r["wall_s"] / n * 1e6
+            row[f"{key}_peak_rss_mb"] = r["peak_rss_mb"]
+        rows.append(row)
+        shutil.rmtree(d)
+    return rows
+
+
+def run(quick: bool = False, log=print, workdir: str | None = None,
+        sizes: list[str] | None = None, repeat: int | None = None) -> dict:
+    t_start = time.perf_counter()
+    n = 20_000 if quick else 1_000_000
+    repeat = repeat or (1 if quick else 3)
+    mesh = make_mesh(quick)
+    tmp = tempfile.TemporaryDirectory(dir=workdir)
+    folder = Path(tmp.name)
+    try:
+        log(f"convert: writing {n} splats, {mesh.face_count} faces")
+        splats, mesh_path = write_inputs(folder, mesh, n)
+        res: dict = {"n_splats": n, "n_faces": mesh.face_count,
+                     "input_mb": splats.stat().st_size / 2**20, "repeat": repeat}
+        res.update(head_to_head(folder, splats, mesh_path, repeat, log))
+        input_mb = res["input_mb"]
+        st, plain, anchored = res["splat_transform"], res["plain"], res["anchored"]
+        ratios: dict = {}
+        if "wall_s" in plain and "wall_s" in st:
+            ratios["plain_over_splat_transform"] = plain["wall_s"] / st["wall_s"]
+        if "wall_s" in plain and "wall_s" in anchored:
+            ratios["anchored_over_plain"] = anchored["wall_s"] / plain["wall_s"]
+        for key, r in (("splat_transform", st), ("plain", plain), ("anchored", anchored)):
+            if "peak_rss_mb" in r:
+                ratios[f"{key}_rss_over_input"] = r["peak_rss_mb"] / input_mb
+        res["ratios"] = ratios
+        # the keys the report's memory summary reads
+        if "peak_rss_mb" in anchored:
+            res["cli_peak_rss_mb"] = anchored["peak_rss_mb"]
+        if "peak_rss_mb" in plain:
+            res["plain_peak_rss_mb"] = plain["peak_rss_mb"]
+        log("convert: memory by stage")
+        res["stages"] = memory_stages(splats, folder)
+        res["anchored_stages"] = memory_stages(splats, folder, mesh_path)
+        splats.unlink()
+        res["scaling"] = scaling(folder, mesh, list(sizes or (QUICK_SIZES if quick else DEFAULT_SIZES)),
+                                 log)
+    finally:
+        tmp.cleanup()
     res["seconds"] = time.perf_counter() - t_start
-    tmp.cleanup()
     log(f"convert: done in {res['seconds']:.1f} s")
     return res
+
+
+# ---------------------------------------------------------------------------- report
+
+
+def _f(x, digits: int = 3) -> str:
+    if x is None or (isinstance(x, float) and not np.isfinite(x)):
+        return "–"
+    return f"{x:.{digits}g}"
+
+
+def _table(header: list[str], rows: list[list]) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
+    return "\n".join(lines)
+
+
+def markdown(conv: dict) -> list[str]:
+    """The report section (Markdown lines) for the result of :func:`run`."""
+    L = ["## `gsverse-convert` end to end", ""]
+    if not conv:
+        return L + ["Not run.", ""]
+    if "plain" not in conv:   # a failure before the runs
+        return L + ["The benchmark failed:", "", "```", str(conv.get("error", "")), "```", ""]
+    input_mb = conv["input_mb"]
+    L.append(f"A 3DGS PLY of {conv['n_splats']:,} splats (SH degree 3 with normals, "
+             f"{input_mb:.1f} MiB) and a {conv['n_faces']:,}-face mesh PLY; each command a fresh "
+             f"process, median of {conv['repeat']} run(s); peak RSS of the process.")
+    L.append("")
+    rows = []
+    st = conv["splat_transform"]
+    label = f"PlayCanvas `splat-transform` {conv.get('splat_transform_version', '')}, PLY → GLB"
+    named = ((label.replace("  ", " "), st), ("`gsverse-convert --plain` (format only)", conv["plain"]),
+             ("`gsverse-convert --mesh` (anchored)", conv["anchored"]))
+    for name, r in named:
+        if "skipped" in r:
+            rows.append([name, f"skipped: {r['skipped']}", "–", "–", "–"])
+        elif "error" in r:
+            rows.append([name, "failed: " + r["error"].strip().splitlines()[-1][:120], "–", "–", "–"])
+        else:
+            rows.append([name, _f(r["wall_s"]), _f(r["peak_rss_mb"], 4),
+                         _f(r["peak_rss_mb"] / input_mb), _f(r["output_mb"], 4)])
+    L.append(_table(["run", "wall s", "peak RSS MiB", "peak RSS / input", "output MiB"], rows))
+    L.append("")
+    ratios = conv.get("ratios", {})
+
+    def goal(what: str, value: float, limit: float) -> str:
+        verdict = "met" if value <= limit else f"missed by {100.0 * (value / limit - 1.0):.0f} %"
+        return f"{what}: **{value:.2f}×** (goal ≤ {limit:g}: {verdict})"
+
+    goals = []
+    if "plain_over_splat_transform" in ratios:
+        goals.append(goal("`--plain` / splat-transform wall time",
+                          ratios["plain_over_splat_transform"], 1.0))
+    if "anchored_over_plain" in ratios:
+        goals.append(goal("anchored / `--plain` wall time", ratios["anchored_over_plain"], 1.5))
+    for key, what in (("plain", "`--plain`"), ("anchored", "anchored")):
+        if f"{key}_rss_over_input" in ratios:
+            goals.append(goal(f"{what} peak RSS / input size", ratios[f"{key}_rss_over_input"], 3.0))
+    L += [f"- {g}" for g in goals]
+    if conv["n_splats"] < 500_000:
+        L.append(f"- At {conv['n_splats']:,} splats these ratios mostly compare start-up costs "
+                 "(interpreters, imports): the goals are stated for 1M splats.")
+    L.append("")
+    for key, what in (("stages", "plain"), ("anchored_stages", "anchored")):
+        stages = conv.get(key) or []
+        if not stages:
+            continue
+        if "error" in stages[0]:
+            L += [f"The {what} memory breakdown failed:", "", "```", stages[0]["error"], "```", ""]
+            continue
+        L.append(f"Where the memory of the {what} conversion goes (a fresh process; traced: numpy "
+                 "and Python allocations during the stage; RSS and peak RSS of the process after "
+                 "it; the PLY is memory-mapped, so its pages count in RSS but not in the traced "
+                 "bytes" + ("; numba's compiled kernels count in RSS only" if key != "stages" else "")
+                 + "):")
+        L.append("")
+        L.append(_table(["stage", "seconds", "traced peak MiB", "traced kept MiB", "RSS MiB",
+                         "peak RSS MiB"],
+                        [[s["stage"], _f(s["seconds"]), _f(s["traced_peak_mb"]),
+                          _f(s["traced_kept_mb"]), _f(s.get("VmRSS"), 4), _f(s.get("VmHWM"), 4)]
+                         for s in stages]))
+        L.append("")
+    scale = conv.get("scaling") or []
+    if scale:
+        L.append(f"Scaling (one run each, the same {conv['n_faces']:,}-face mesh; µs per splat = "
+                 "wall time of the fresh process / splats, start-up included):")
+        L.append("")
+        rows = []
+        for r in scale:
+            row = [f"{r['n_splats']:,}", _f(r["input_mb"])]
+            for key in ("plain", "anchored", "validate"):
+                if f"{key}_s" in r:
+                    row += [_f(r[f"{key}_s"]), _f(r[f"{key}_us_per_splat"]),
+                            _f(r[f"{key}_peak_rss_mb"], 4)]
+                else:
+                    row += ["failed", "–", "–"]
+            rows.append(row)
+        L.append(_table(["splats", "input MiB", "plain s", "plain µs/splat", "plain peak MiB",
+                         "anchored s", "anchored µs/splat", "anchored peak MiB", "validate s",
+                         "validate µs/splat", "validate peak MiB"], rows))
+        L.append("")
+    return L
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.convert", description=__doc__.split("\n")[0])
+    p.add_argument("--quick", action="store_true", help="20k splats, ~6k faces; sizes 10k, 20k")
+    p.add_argument("--sizes", nargs="+", choices=list(SIZES),
+                   help=f"scaling sizes (default: {' '.join(DEFAULT_SIZES)})")
+    p.add_argument("--repeat", type=int, help="repetitions of the side-by-side runs (default 3)")
+    p.add_argument("--json", metavar="FILE", help="also write the results as JSON")
+    args = p.parse_args(argv)
+    res = run(args.quick, log=lambda msg: print(msg, file=sys.stderr, flush=True),
+              sizes=args.sizes, repeat=args.repeat)
+    print("\n".join(markdown(res)))
+    if args.json:
+        Path(args.json).write_text(json.dumps(res, indent=1, default=float), encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

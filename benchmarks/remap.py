@@ -16,9 +16,20 @@ those bytes (float64 output, 96 bytes).
 
 Every timing is a median over repetitions in batches during which other processes used less
 than a quarter of a core (over all batches, marked †, when there were none).
+
+Further rows (``local/affine``, the fast path):
+
+* **busy core**: 1 and all threads while this benchmark's own child process spins on one core
+  (``python -c "while True: pass"``): the remap must degrade gracefully, never slower on 2
+  threads than on 1 (one parallel region per frame, chunks handed out dynamically);
+* **scaling**: 100k, 1M and 4M splats on the same 100k-face mesh (``--quick``: 10k, 100k, 400k
+  on 10k faces), with the time per 1M splats and the share of the floor: 100k splats should not
+  cost much more per splat than 1M (faces without splats are not computed).
 """
 from __future__ import annotations
 
+import subprocess
+import sys
 import time
 import tracemalloc
 
@@ -118,7 +129,7 @@ def _peak_bytes(fn) -> int:
 def _row(name, impl, threads, n, timing, bytes_per_splat, bw, *, order="by face", check=None):
     ms = timing.median * 1e3
     floor_ms = bytes_per_splat * n / (bw * 1e9) * 1e3 if bw else float("nan")
-    return {"case": name, "impl": impl, "threads": threads, "order": order, "ms": ms,
+    return {"case": name, "impl": impl, "threads": threads, "order": order, "n": n, "ms": ms,
             "ms_per_1M": ms * 1e6 / n, "best_ms": timing.best * 1e3, "msplats_s": n / timing.median / 1e6,
             "bytes_per_splat": bytes_per_splat, "floor_ms": floor_ms,
             "floor_fraction": floor_ms / ms if ms else float("nan"),
@@ -132,6 +143,83 @@ def _accuracy(anchoring, vertices, out, ref=None):
     rel = np.linalg.norm(cov - ref.covariances, axis=(1, 2)) / np.linalg.norm(ref.covariances, axis=(1, 2))
     return {"max_mean_err": float(np.max(np.abs(out.means - ref.means))),
             "max_cov_rel_err": float(np.max(rel))}
+
+
+def _impl_name(fast: FastRemapper) -> str:
+    return ("fast path (numba, float32, one pass over runs)" if fast.one_pass
+            else "fast path (numba, float32, face pass + splat pass)")
+
+
+def _busy_loop() -> subprocess.Popen:
+    """A child process that keeps one core busy until killed."""
+    proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    time.sleep(0.5)
+    return proc
+
+
+def _busy_rows(result: dict, mesh, verts, anchoring, threads_all: int, bw: dict,
+               quick: bool) -> None:
+    """1 and all threads while one core is kept busy by a child process."""
+    import numba
+
+    variants = [FastRemapper(anchoring, backend="numba"),
+                FastRemapper(anchoring, backend="numba", one_pass=False)]
+    for fast in variants:
+        fast.remap(verts)
+    n = variants[0].n_splats
+    busy = _busy_loop()
+    try:
+        for th in sorted({1, threads_all}):
+            numba.set_num_threads(th)
+            for fast in variants:
+                t = measure(lambda: fast.remap(verts), repeat=10 if quick else 40, batches=2)
+                row = _row(anchoring.anchors.profile + "/" + anchoring.anchors.deformation,
+                           _impl_name(fast), th, n, t, fast.bytes_per_splat, bw[th],
+                           order="by face, one core busy")
+                row["busy_core"] = True
+                row["one_pass"] = fast.one_pass
+                result["rows"].append(row)
+    finally:
+        numba.set_num_threads(threads_all)
+        busy.kill()
+        busy.wait()
+    for one_pass in (True, False):
+        rows = {r["threads"]: r for r in result["rows"]
+                if r.get("busy_core") and r.get("one_pass") == one_pass}
+        if 1 in rows and threads_all in rows and threads_all > 1:
+            ratio = rows[threads_all]["ms"] / rows[1]["ms"]
+            if one_pass:
+                result["busy_core_ratio"] = ratio
+            result["notes"].append(
+                f"one core busy, {'one pass' if one_pass else 'two passes'}: {threads_all} "
+                f"threads take {ratio:.2f}× the time of 1 thread ({rows[threads_all]['ms']:.2f} "
+                f"vs {rows[1]['ms']:.2f} ms); goal ≤ 1")
+
+
+def _scaling_rows(result: dict, mesh, verts, threads_all: int, bw: dict, quick: bool) -> None:
+    """The fast path at 0.1×, 1× and 4× the workload's splat count on the same mesh."""
+    import numba
+
+    base = result["n_splats"]
+    numba.set_num_threads(threads_all)
+    for n in (base // 10, base, 4 * base):
+        anchoring = Anchoring(mesh, random_anchors(mesh, n, "local/affine", seed=3))
+        fast = FastRemapper(anchoring, backend="numba")
+        fast.remap(verts)
+        reps = max(5, min(100, int(40 * base / n))) if not quick else 10
+        t = measure(lambda: fast.remap(verts), repeat=reps, batches=3,
+                    retry_contended=0 if quick else 2)
+        row = _row(f"local/affine, {n:,} splats", _impl_name(fast), threads_all, n, t,
+                   fast.bytes_per_splat, bw[threads_all], order="by face (scaling)")
+        row["scaling"] = True
+        result["rows"].append(row)
+        fast = anchoring = None
+    rows = {r["n"]: r for r in result["rows"] if r.get("scaling")}
+    small, mid = rows.get(base // 10), rows.get(base)
+    if small and mid:
+        result["scaling_ratio"] = small["ms_per_1M"] / mid["ms_per_1M"]
+        result["notes"].append(f"{base // 10:,} splats cost {result['scaling_ratio']:.2f}× per "
+                               f"splat what {base:,} do (goal: well under 2×)")
 
 
 def run(quick: bool = False, log=print) -> dict:
@@ -207,9 +295,11 @@ def run(quick: bool = False, log=print) -> dict:
                             max_wait_s=0 if quick else (240 if case == "local/affine" else 120))
                 result["rows"].append(_row(case, "fast path (numba, float32)", th, n, t,
                                            fast.bytes_per_splat, bw[th], check=check))
-                tf = measure(lambda: fast.face_pass(verts), repeat=reps, batches=2,
-                             retry_contended=0 if quick else 2)
-                result["rows"][-1]["face_pass_ms"] = tf.median * 1e3
+                result["rows"][-1]["impl"] = _impl_name(fast)
+                if not fast.one_pass:
+                    tf = measure(lambda: fast.face_pass(verts), repeat=reps, batches=2,
+                                 retry_contended=0 if quick else 2)
+                    result["rows"][-1]["face_pass_ms"] = tf.median * 1e3
                 if case == "local/rigid":
                     fast_r = FastRemapper(anchoring, backend="numba", rotations=True)
                     fast_r.remap(verts)
@@ -229,21 +319,45 @@ def run(quick: bool = False, log=print) -> dict:
             finally:
                 numba.set_num_threads(threads_all)
         if case == "local/affine":
-            result["fast_buffers_mb"] = (fast._consts.nbytes + fast._face.nbytes + fast._table.nbytes
+            plan = fast._plan
+            index_bytes = (plan.run_of.nbytes + plan.face.nbytes + plan.chunk.nbytes
+                           if plan is not None else fast._face.nbytes)
+            result["fast_buffers_mb"] = (fast._consts.nbytes + index_bytes + fast._table.nbytes
                                          + out.means.nbytes + out.cov6.nbytes) / 2**20
             result["peak_fast_remap_mb"] = _peak_bytes(lambda: fast.remap(verts)) / 2**20
+            # The two passes on the same face-sorted splats (what the one pass is worth).
+            two = FastRemapper(anchoring, backend="numba", one_pass=False)
+            two.remap(verts)
+            for th in sorted({1, threads_all}):
+                numba.set_num_threads(th)
+                try:
+                    t = measure(lambda: two.remap(verts), repeat=10 if quick else 40, batches=2,
+                                retry_contended=0 if quick else 2)
+                finally:
+                    numba.set_num_threads(threads_all)
+                result["rows"].append(_row(case, _impl_name(two), th, n, t, two.bytes_per_splat,
+                                           bw[th]))
+            two = None
             # Random splat order: what face-sorted storage is worth.
             perm = np.random.default_rng(5).permutation(n)
             shuffled = FastRemapper(Anchoring(mesh, anchors.subset(perm)), backend="numba")
             shuffled.remap(verts)
             t = measure(lambda: shuffled.remap(verts), repeat=5 if quick else 10, batches=2,
                         retry_contended=0 if quick else 2)
-            result["rows"].append(_row(case, "fast path (numba, float32)", threads_all, n, t,
-                                       fast.bytes_per_splat, bw[threads_all], order="random"))
+            result["rows"].append(_row(case, _impl_name(shuffled), threads_all, n, t,
+                                       shuffled.bytes_per_splat, bw[threads_all], order="random"))
+            shuffled = None
+            fast = out = None
+            _busy_rows(result, mesh, verts, anchoring, threads_all, bw, quick)
+            anchors = anchoring = None
+            _scaling_rows(result, mesh, verts, threads_all, bw, quick)
         fast = out = None  # release the buffers before the next case
     result["seconds"] = time.perf_counter() - t_start
     target = [r for r in result["rows"] if r["case"] == "local/affine" and r["impl"].startswith("fast path (")
               and r["threads"] == threads_all and r["order"] == "by face"]
+    if have_numba:
+        result["threading_layer"] = numba.threading_layer()
+        result["notes"].append(f"numba threading layer: {result['threading_layer']}")
     if target:
         r = target[0]
         # Per 1M splats (the quick run has fewer splats and a smaller mesh).

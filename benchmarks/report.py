@@ -58,7 +58,7 @@ def plot_remap(remap: dict, out: Path) -> str | None:
     labels = [f"{r['case']}\n{r['impl'].split('(')[0].strip()}, {r['threads']}T"
               + (", random order" if r["order"] == "random" else "") for r in rows]
     vals = [r["ms_per_1M"] for r in rows]
-    floors = [r["floor_ms"] * 1e6 / remap["n_splats"] for r in rows]
+    floors = [r["floor_ms"] * 1e6 / r.get("n", remap["n_splats"]) for r in rows]
     fig, ax = plt.subplots(figsize=(10, 0.42 * len(rows) + 1.5))
     y = np.arange(len(rows))
     ax.barh(y, vals, color=["#4c72b0" if "fast" in r["impl"] else "#999999" for r in rows])
@@ -299,30 +299,9 @@ def _remap_md(remap: dict) -> list[str]:
 
 
 def _convert_md(conv: dict) -> list[str]:
-    L = ["## `gsverse-convert` end to end", ""]
-    if not conv:
-        return L + ["Not run.", ""]
-    if "error" in conv:
-        return L + ["The conversion failed:", "", "```", conv["error"], "```", ""]
-    L.append(f"A 3DGS PLY of {conv['n_splats']:,} splats (SH degree 3, {conv['input_mb']:.1f} MiB) and a "
-             f"{conv['n_faces']:,}-face mesh PLY → anchored GLB ({conv['output_mb']:.1f} MiB).")
-    L.append("")
-    rows = [
-        ["`gsverse-convert` as a fresh process (start-up, imports, read, bind, write)", _f(conv["cli_wall_s"]), _f(conv["cli_peak_rss_mb"])],
-        ["read PLY + read mesh + write the same GLB, fresh process", _f(conv["io_process_wall_s"]), _f(conv["io_process_peak_rss_mb"])],
-        ["`import gsverse_format.cli.convert` alone, fresh process", _f(conv["import_s"]), "–"],
-        ["`convert()` in-process" + (f" {DAGGER}" if conv.get("convert_contended") else ""), _f(conv["convert_s"]), "–"],
-        ["read PLY + read mesh + write GLB, in-process", _f(conv["io_s"]), "–"],
-        ["… read PLY", _f(conv["read_ply_s"]), "–"],
-        ["… read mesh", _f(conv["read_mesh_s"]), "–"],
-        ["… write GLB", _f(conv["write_glb_s"]), "–"],
-    ]
-    L.append(_table(["what", "seconds", "peak RSS MiB"], rows))
-    L.append("")
-    L.append(f"In-process the conversion takes {conv['overhead_ratio']:.1f}× the time of reading and writing the same "
-             "files; the difference is the binding (exact nearest triangle), sorting and checks.")
-    L.append("")
-    return L
+    from .convert import markdown
+
+    return markdown(conv)
 
 
 def _external_md(title: str, ext: dict | None, command: str) -> list[str]:
@@ -358,7 +337,9 @@ def _memory_md(res: dict) -> list[str]:
     conv = res.get("convert") or {}
     if "cli_peak_rss_mb" in conv:
         rows.append([f"`gsverse-convert`, {conv['n_splats']:,} splats (process peak RSS)", _f(conv["cli_peak_rss_mb"])])
-        rows.append(["reading + writing the same files alone (process peak RSS)", _f(conv["io_process_peak_rss_mb"])])
+    if "plain_peak_rss_mb" in conv:
+        rows.append(["`gsverse-convert --plain` of the same PLY (process peak RSS)",
+                     _f(conv["plain_peak_rss_mb"])])
     for key, label in (("binding", "binding benchmark process"), ("validate", "validation benchmark process")):
         ext = res.get(key) or {}
         if "peak_rss_mb" in ext:
@@ -521,6 +502,12 @@ def write_report(res: dict, out: Path) -> Path:
         L += _convert_md(res["convert"])
     L += _external_md("Validation", res.get("validate"),
                       res.get("validate", {}).get("command", "python -m benchmarks.validate"))
+    if "hostile" in res:
+        L += _external_md("Hostile inputs", res.get("hostile"),
+                          res.get("hostile", {}).get("command", "python -m benchmarks.hostile"))
+    if "size" in res:
+        L += _external_md("File size: anchored against plain KHR", res.get("size"),
+                          res.get("size", {}).get("command", "python -m benchmarks.size"))
     L += _memory_md(res)
     if res.get("accuracy"):
         L += _acc_md(res["accuracy"], plots)

@@ -11,6 +11,7 @@ with ``load(input_path, mesh_path, options) -> SourceResult``
 ``trellis``   TRELLIS PLY + GLB of the same run: frame change, welded mesh, nearest binding
 ``games``     GaMeS / GS-Verse output folder: ``games`` profile, lossless
 ``khr``       a ``KHR_gaussian_splatting`` .glb/.gltf as splat input, with ``--mesh``
+``spz`` etc.  ``splat``, ``ksplat``, ``spz``, ``compressed-ply``, ``sog`` (:mod:`.splatformats`)
 ============  =====================================================================
 
 Importing this package registers all of them (in this order, which ``--help`` shows).
@@ -23,6 +24,7 @@ from gsverse_format.converters import sugar  # noqa: F401  isort: skip
 from gsverse_format.converters import trellis  # noqa: F401  isort: skip
 from gsverse_format.converters import games  # noqa: F401  isort: skip
 from gsverse_format.converters import khr  # noqa: F401  isort: skip
+from gsverse_format.converters import splatformats  # noqa: F401  isort: skip
 from gsverse_format.converters.registry import SOURCES, detect_source, get_source
 
 __all__ = ["SOURCES", "detect_source", "get_source"]

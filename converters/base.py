@@ -58,6 +58,10 @@ class SourceResult:
     check: dict[str, Any] = field(default_factory=dict)
     frame: str = "gltf"
     khr: KhrProperties = field(default_factory=KhrProperties)
+    #: Every file the loader read (a source folder's files: its PLY, parameters, mesh), which
+    #: the output must not replace; empty: only the input path and the files named in the
+    #: options (a folder input then protects every file inside it).
+    inputs: tuple[str, ...] = ()
 
 
 def require_splats(splats: SplatCloud, path: str, why: str = "the PLY holds none") -> None:

@@ -100,6 +100,7 @@ def _locate(input_path: str) -> tuple[str, list[str], list[str]]:
             if len(found) > 1:
                 notes.append(f"used the highest of {len(found)} iterations: "
                              f"{os.path.basename(os.path.dirname(ply))}")
+        _inside_run(ply, input_path)
         folders = [os.path.dirname(ply), input_path]
     elif os.path.isfile(input_path):
         ply = input_path
@@ -113,10 +114,26 @@ def _locate(input_path: str) -> tuple[str, list[str], list[str]]:
     return ply, unique, notes
 
 
+def _inside_run(found: str, root: str) -> None:
+    """Refuse a file found in the run folder ``root`` that is a symbolic link (or lies under
+    one) to a file outside it: like the glTF reader's buffer URIs, a run folder only brings
+    in files inside it. Files named on the command line (``--mesh``, ``--pt``) are the user's
+    choice and not checked."""
+    folder = os.path.realpath(root)
+    real = os.path.realpath(found)
+    if not real.startswith(folder.rstrip(os.sep) + os.sep):
+        raise FormatError(f"is a symbolic link to {real}, outside the run folder {root}: only "
+                          "files inside it are read (copy the file in, or name it with --mesh "
+                          "or --pt)", found)
+
+
 def _first(folders: list[str], name: str) -> str | None:
+    """The first ``name`` in ``folders`` (the last of which is the run folder, or the
+    folder of the input PLY); it must lie inside that folder."""
     for folder in folders:
         candidate = os.path.join(folder, name)
         if os.path.isfile(candidate):
+            _inside_run(candidate, folders[-1])
             return candidate
     return None
 
@@ -377,7 +394,8 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     if degenerate:
         notes.append(f"{degenerate} face(s) of the mesh are degenerate; their splats follow the "
                      "spec's fallback frame")
-    return SourceResult(splats, mesh, anchors, notes, check, frame=_FRAMES[frame][2])
+    return SourceResult(splats, mesh, anchors, notes, check, frame=_FRAMES[frame][2],
+                        inputs=(ply, params_path, mesh_name))
 
 
 def detect(input_path: str, mesh_path: str | None) -> str | None:

@@ -23,13 +23,25 @@ import numpy as np
 
 from gsverse_format.converters.base import SourceOptions, SourceResult
 from gsverse_format.converters.registry import register_source
-from gsverse_format.errors import FormatError
+from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.io.gltf import read_gltf
 from gsverse_format.io.mesh import read_mesh
-from gsverse_format.model import (Anchors, GamesAnchors, KhrProperties, LocalAnchors, SplatCloud,
-                                  SplatPrimitive)
+from gsverse_format.model import (Anchors, GamesAnchors, KhrProperties, LocalAnchors, SplatAsset,
+                                  SplatCloud, SplatPrimitive, check_primitive)
 
-__all__ = ["load", "detect"]
+__all__ = ["load", "detect", "require_valid_primitives"]
+
+
+def require_valid_primitives(asset: SplatAsset, input_path: str) -> None:
+    """Refuse an input whose primitives no writer would accept (:func:`~gsverse_format.model.
+    check_primitive`: invalid splat values such as negative scales, anchors that do not match
+    the splats or the anchor mesh) with a :class:`FormatError` naming the input, before any
+    output is attempted: the problem is the input's, not the output's."""
+    for i, prim in enumerate(asset.primitives):
+        try:
+            check_primitive(i, prim)
+        except UsageError as err:
+            raise FormatError(err.cause, input_path) from None
 
 
 def _compatible(a: Anchors, b: Anchors) -> bool:
@@ -72,6 +84,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     prims: list[SplatPrimitive] = asset.primitives
     if not prims:
         raise FormatError("no KHR_gaussian_splatting primitive in the file", input_path)
+    require_valid_primitives(asset, input_path)
     notes: list[str] = []
     total = sum(len(p.splats) for p in prims)
     if mesh_path is not None:

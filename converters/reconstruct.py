@@ -56,7 +56,7 @@ import math
 import os
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -208,8 +208,9 @@ def _poisson(points: np.ndarray, normals: np.ndarray, weights: np.ndarray, depth
 def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
                       depth: int | None = None, *, min_opacity: float = 0.05,
                       trim_percentile: float = 20.0, trim_gap: float = 1.0,
-                      min_component: float = 0.01,
-                      threads: int | None = None) -> tuple[TriangleMesh, dict[str, Any]]:
+                      min_component: float = 0.01, threads: int | None = None,
+                      stage: Callable[[str], None] | None = None,
+                      ) -> tuple[TriangleMesh, dict[str, Any]]:
     """Reconstruct an anchor mesh from ``splats`` (see the module docstring for each step).
 
     Returns ``(mesh, report)``; the mesh is in the splats' frame and units. ``report`` holds
@@ -217,8 +218,10 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     ``poisson_faces``, ``trim_threshold`` and ``trimmed_faces``, ``removed_components``,
     ``faces`` and ``vertices`` of the result, its ``boundary_edges`` and ``components``,
     ``seconds`` per stage and ``notes`` (list of str). ``threads`` for Poisson defaults to half
-    the usable cores.
+    the usable cores. ``stage`` (e.g. :meth:`gsverse_format.progress.Progress.stage`) is called
+    with the name of each step as it starts.
     """
+    stage = stage or (lambda label: None)
     faces = DEFAULT_FACES if faces is None else int(faces)
     if faces < 4:
         raise UsageError(f"the reconstructed mesh needs at least 4 faces, not {faces}")
@@ -228,6 +231,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
         raise FormatError(f"only {len(splats)} splats: too few to reconstruct a mesh; "
                           "pass the object's mesh with --mesh")
     report: dict[str, Any] = {"splats": len(splats), "notes": [], "seconds": {}}
+    stage(f"reconstructing the anchor mesh: normals of {len(splats)} splats")
     t0 = time.perf_counter()
     use, note = _select_points(splats, min_opacity)
     if note:
@@ -243,6 +247,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     t1 = time.perf_counter()
     depth = poisson_depth(faces) if depth is None else int(depth)
     report["depth"] = depth
+    stage(f"reconstructing the anchor mesh: screened Poisson, depth {depth}")
     import pymeshlab
 
     try:
@@ -257,6 +262,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
         raise FormatError("screened Poisson produced no surface from the splat centres; "
                           "pass a mesh with --mesh")
 
+    stage(f"reconstructing the anchor mesh: trimming {len(f)} faces")
     t2 = time.perf_counter()
     fq = q[f].mean(axis=1)
     threshold = float(min(np.percentile(q, trim_percentile), np.median(q) - trim_gap))
@@ -275,6 +281,7 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     mesh = TriangleMesh(v, f)
     report["seconds"]["trim"] = time.perf_counter() - t2
 
+    stage(f"reconstructing the anchor mesh: decimating {mesh.face_count} -> {faces} faces")
     t3 = time.perf_counter()
     mesh = repair(decimate(mesh, faces))
     report["seconds"]["decimate_repair"] = time.perf_counter() - t3
@@ -301,12 +308,14 @@ def distance_check(splats: SplatCloud, mesh: TriangleMesh, *,
             "distance_max_rel": float(d.max() / diag) if d.size else 0.0, "checked": int(idx.size)}
 
 
-def reconstruct_mesh(result: SourceResult, faces: int | None, input_path: str) -> SourceResult:
+def reconstruct_mesh(result: SourceResult, faces: int | None, input_path: str, *,
+                     stage: Callable[[str], None] | None = None) -> SourceResult:
     """``result`` (splats without a mesh) with an anchor mesh of about ``faces`` faces
     (default :data:`DEFAULT_FACES`) reconstructed from its splats, in the splats' frame; the
-    notes and ``check`` say what was done and how close the splats lie to the mesh."""
+    notes and ``check`` say what was done and how close the splats lie to the mesh.
+    ``stage`` is called with the name of each step as it starts."""
     try:
-        mesh, report = build_anchor_mesh(result.splats, faces)
+        mesh, report = build_anchor_mesh(result.splats, faces, stage=stage)
     except FormatError as exc:
         raise exc.with_path(input_path) from None
     notes = [f"anchor mesh reconstructed from {report['points']} of {report['splats']} splat "
@@ -316,5 +325,7 @@ def reconstruct_mesh(result: SourceResult, faces: int | None, input_path: str) -
     notes.extend(report["notes"])
     check = {f"reconstruct_{k}": v for k, v in report.items() if k not in ("notes", "seconds")}
     check["reconstruct_seconds"] = round(report["seconds"]["total"], 3)
+    if stage is not None:
+        stage("reconstructing the anchor mesh: measuring splat distances")
     check.update(distance_check(result.splats, mesh))
     return replace(result, mesh=mesh, notes=result.notes + notes, check={**result.check, **check})

@@ -5,8 +5,11 @@ A source is a tool whose output ``gsverse-convert`` reads (``--from NAME``). Its
 
 * ``load(input_path, mesh_path, options) -> SourceResult`` (:mod:`.base`), and
 * ``detect(input_path, mesh_path) -> str | None``: the reason the inputs look like this source's
-  output, or None. ``--from auto`` tries the sources by ascending ``priority`` and takes the
-  first that answers; the plain ``3dgs`` source answers always, last.
+  output, or None. A detector answers only on positive evidence, something the layout or the
+  values of this source's output have and others' do not (a file layout shared with plain
+  3DGS PLYs is not enough), and its reason names that evidence. ``--from auto`` tries the
+  sources by ascending ``priority`` and takes the first that answers; the plain ``3dgs``
+  source answers always, last.
 
 :mod:`gsverse_format.converters` imports every source module, so importing it fills the table.
 Sources never import each other, nor this table's callers.

@@ -23,8 +23,9 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
 
 
 def detect(input_path: str, mesh_path: str | None) -> str:
-    """Every input not claimed by another source is a plain 3DGS PLY."""
-    return "plain 3DGS PLY"
+    """Every input not claimed by another source (no other layout with its evidence) is a
+    plain 3DGS PLY."""
+    return "plain 3DGS PLY (no other source recognised it; --from names one)"
 
 
 register_source("3dgs", load, detect=detect, priority=100)

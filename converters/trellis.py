@@ -42,9 +42,9 @@ import numpy as np
 
 from gsverse_format.converters.base import SourceOptions, SourceResult, require_splats
 from gsverse_format.converters.registry import register_source
-from gsverse_format.errors import FormatError, UsageError
+from gsverse_format.errors import FormatError, GsverseError, UsageError
 from gsverse_format.io.mesh import read_mesh
-from gsverse_format.io.ply import describe_ply, read_splat_ply
+from gsverse_format.io.ply import describe_ply, read_ply_elements, read_splat_ply
 from gsverse_format.meshops import bbox_diagonal, mesh_stats, weld
 from gsverse_format.model import TriangleMesh
 from gsverse_format.nearest import nearest_triangles
@@ -149,7 +149,8 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     best = min(medians, key=medians.__getitem__)
     if medians[frame] > MISMATCH or (medians[frame] > MISMATCH / 10
                                      and medians[best] * BETTER < medians[frame]):
-        raise FormatError(_mismatch(frame, medians), input_path)
+        raise FormatError(_mismatch(frame, medians) + "; if this is not TRELLIS output, use "
+                          "--from 3dgs", input_path)
 
     rotation = _FRAMES[frame][0]
     if frame != "none":
@@ -175,14 +176,46 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     return SourceResult(splats, mesh, None, notes, check, frame="gltf")
 
 
+def _values_evidence(path: str) -> str | None:
+    """Why the PLY's values are TRELLIS's, or None: zero normals (``save_ply`` writes zeros),
+    every centre inside TRELLIS's cube (:data:`CUBE_LIMIT`) and every scale at least its
+    minimum kernel (:data:`MIN_KERNEL`, 1 % slack for float32 and ``log``/``exp``). A plain
+    3DGS PLY of the same layout (SH0 with normals) fails at least one of these: scenes are
+    not inside a unit cube, and trained scales go below 9e-4."""
+    try:
+        v = read_ply_elements(path, ["vertex"])["vertex"]
+    except (GsverseError, KeyError):
+        return None  # not readable as a splat PLY: the chosen source's loader says why
+    names = v.dtype.names or ()
+    need = ("x", "y", "z", "nx", "ny", "nz", "scale_0", "scale_1", "scale_2")
+    if not len(v) or not all(n in names for n in need):
+        return None
+    with np.errstate(all="ignore"):
+        xyz = np.stack([v[n].astype(np.float64) for n in ("x", "y", "z")], axis=1)
+        normals = np.stack([v[n].astype(np.float64) for n in ("nx", "ny", "nz")], axis=1)
+        scales = np.exp(np.stack([v[n].astype(np.float64) for n in need[6:]], axis=1))
+        reach = float(np.max(np.abs(xyz)))
+        smallest = float(np.min(scales))
+    if np.any(normals != 0) or not reach <= CUBE_LIMIT or not smallest >= MIN_KERNEL * 0.99:
+        return None
+    return (f"centres within {reach:.2g} of the origin (TRELLIS's unit cube), smallest scale "
+            f"{smallest:.2g} >= its minimum kernel {MIN_KERNEL:g}, zero normals")
+
+
 def detect(input_path: str, mesh_path: str | None) -> str | None:
-    """An SH0 PLY with normals and nothing else, and a GLB mesh: TRELLIS's layout."""
+    """TRELLIS's layout (an SH0 PLY with normals and nothing else, and a GLB mesh) *and*
+    TRELLIS's values (:func:`_values_evidence`): the layout alone is also that of plain 3DGS
+    PLYs, which then go to ``3dgs``."""
     if mesh_path is None or os.path.splitext(input_path)[1].lower() != ".ply" \
             or os.path.splitext(mesh_path)[1].lower() != ".glb":
         return None
     info = describe_ply(input_path)
-    if info.get("sh_degree") == 0 and info.get("has_normals") and not info.get("extra"):
-        return "SH0 PLY with normals and a GLB mesh (TRELLIS layout)"
+    if info.get("sh_degree") == 0 and info.get("has_normals") and not info.get("extra") \
+            and info.get("color") == "f_dc":
+        evidence = _values_evidence(input_path)
+        if evidence is not None:
+            return (f"SH0 PLY with normals and a GLB mesh, {evidence} (TRELLIS); --from 3dgs "
+                    f"if it is not")
     return None
 
 

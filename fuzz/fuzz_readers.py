@@ -1,28 +1,47 @@
 """Fuzz every reader of the toolkit, and the validator, with mutated valid files.
 
 Seeds are small valid files built from the data model: 3DGS splat PLY (binary little and big
-endian, ASCII), a PLY triangle mesh, and GLB / glTF assets (``local`` and ``games`` anchors,
-quantized anchors, plain splats). Each input is one seed with one to three mutations:
+endian, ASCII), a PLY triangle mesh, GLB / glTF assets (``local`` and ``games`` anchors,
+quantized anchors, plain splats) and USD assets (``.usda`` text and ``.usdc`` crate). Each
+input is one seed with one to three mutations:
 
-* generic: bit flips, interesting bytes, interesting 32-bit integers, truncation, insertion,
-  deletion, duplication of a range, splicing with another seed;
-* GLB: edits of the JSON chunk (numbers replaced by interesting values, keys dropped, strings
-  changed) with the container rebuilt so the edit reaches the JSON checks, and header edits;
+* generic: bit flips, interesting bytes, interesting 32- and 64-bit integers, truncation,
+  insertion, deletion, duplication of a range, splicing with another seed;
+* glTF (structure-aware, the GLB container rebuilt so that the edit reaches the JSON checks):
+  values of another JSON type, accessor counts, references (accessor, buffer view, buffer,
+  mesh, node, child, scene indices) out of range or pointing elsewhere, byte offsets, lengths
+  and strides, enumerations (componentType, type, mode), extension objects (members removed,
+  retyped, unknown, moved to another primitive or out of ``KHR_gaussian_splatting``), keys
+  deleted or written twice, array elements deleted or duplicated; and GLB header edits;
 * PLY: header edits (element counts such as 0, −1 or 10¹², property types, format line,
-  missing ``end_header``).
+  missing ``end_header``);
+* USD text: numbers, type names and tokens replaced, lines deleted or duplicated, array
+  elements dropped, composition arcs and value clips (to the file itself, to missing files,
+  outside the folder) inserted.
 
-Every input is written to a file and passed to each reader that accepts its kind:
+Every input is written to a file and passed to each target that accepts its kind:
 ``read_splat_ply``, ``read_ply_elements``, ``read_ply_mesh`` and ``read_mesh`` for PLY;
-``read_gltf``, ``read_mesh`` and ``validate_file`` for GLB/glTF. The only acceptable outcomes
-are a normal return or the toolkit's own :class:`~gsverse_format.errors.GsverseError`; any
-other exception (``MemoryError`` included: sizes must be checked before allocating), a
-validator ``INTERNAL_ERROR`` finding, or an input that takes longer than ``--timeout`` seconds
-is a failure. Inputs that reach a new outcome join the corpus (a crude feedback loop).
+``read_gltf``, ``read_mesh`` and ``validate`` for GLB/glTF; ``read_usd`` and
+``validate_usd`` for USD, run in a long-lived child process (:mod:`fuzz.usd_worker`: the
+USD library may crash the process reading a corrupt file, which is a refusal, as in
+:mod:`gsverse_format.io.usd.isolation`). Each run of a target has one outcome:
 
-``python -m fuzz.fuzz_readers --runs 100000`` is the long run; the test suite runs 2000
-inputs. ``--engine atheris`` uses coverage-guided libFuzzer mutation instead, when the
-``atheris`` package is installed. Exit status 1 when any input failed; failing inputs are
-kept in ``--crash-dir``.
+* ``ok``: a normal return (for the validator: a report without errors);
+* ``refused``: a clean refusal, the toolkit's own
+  :class:`~gsverse_format.errors.GsverseError` (or, for the validator, a report with error
+  findings; for USD, the USD library crashing the child);
+* ``internal``: an internal error, any other exception (``MemoryError`` included: sizes must be
+  checked before allocating) or a validator ``INTERNAL_ERROR`` finding; a failure;
+* ``hang``: the target took longer than ``--timeout`` seconds; a failure.
+
+A numpy ``RuntimeWarning`` (overflow, invalid value) raised while a target runs is counted per
+target and listed: the command-line tools would print it. Inputs that reach a new outcome
+join the corpus (a crude feedback loop).
+
+``python -m fuzz.fuzz_readers --runs 100000`` is the long run (``--kinds`` restricts it to some
+kinds of file); the test suite runs a few thousand inputs. ``--engine atheris`` uses
+coverage-guided libFuzzer mutation instead, when the ``atheris`` package is installed. Exit
+status 1 when any input failed; failing inputs are kept in ``--crash-dir``.
 """
 from __future__ import annotations
 
@@ -30,249 +49,38 @@ import argparse
 import contextlib
 import json
 import os
+import pathlib
 import random
 import re
+import select
 import signal
-import struct
+import subprocess
 import sys
 import tempfile
 import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable
 
-__all__ = ["seeds", "mutate", "Fuzzer", "main"]
+from fuzz.mutations import mutate
+from fuzz.seeds import seeds
 
-INTERESTING_U32 = (0, 1, 2, 3, 4, 7, 8, 12, 16, 255, 256, 0x7FFF, 0x8000, 0xFFFF, 0x10000,
-                   0x7FFFFFFF, 0x80000000, 0xFFFFFFFE, 0xFFFFFFFF)
-INTERESTING_NUMBERS = ("0", "-1", "1", "2", "3", "4", "5120", "5121", "5123", "5125", "5126",
-                       "65535", "65536", "2147483647", "4294967296", "1000000000000", "1e308",
-                       "-1e308", "0.5", "1.5", "NaN", "Infinity", "true", "null", '"x"', "[]",
-                       "{}")
-_NUMBER = re.compile(rb"-?\d+(?:\.\d+)?(?:[eE][+-]?\d+)?")
-_KEY = re.compile(rb'"([A-Za-z_:0-9]+)"\s*:')
+__all__ = ["seeds", "mutate", "Fuzzer", "UsdWorker", "USD_WORKER_CODE", "OUTCOMES", "main"]
 
-
-# ---------------------------------------------------------------------------- seeds
-
-def seeds() -> list[tuple[str, bytes]]:
-    """(suffix, bytes) of small valid files of every kind the readers accept."""
-    import numpy as np
-
-    from gsverse_format.binding import bind_local
-    from gsverse_format.examples import example_mesh, example_splats
-    from gsverse_format.io.gltf import asset_to_gltf, gltf_to_bytes
-    from gsverse_format.io.ply import write_splat_ply
-    from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatPrimitive)
-    from gsverse_format.remap_reference import remap
-
-    mesh = example_mesh(subdivisions=0)
-    cloud = example_splats(mesh, 12, seed=3)
-    local = bind_local(cloud, mesh).anchors
-    rng = np.random.default_rng(4)
-    games = GamesAnchors(np.sort(rng.integers(0, mesh.face_count, 10)),
-                         rng.dirichlet([2, 2, 2], 10)[:, 1:], rng.uniform(0.3, 1.0, 10))
-    g = remap(Anchoring(mesh, games))
-    from gsverse_format.model import SplatCloud
-
-    gcloud = SplatCloud(g.means, g.rotations, g.scales, rng.uniform(0.2, 1, 10),
-                        rng.normal(0, 0.2, (10, 1, 3)))
-    anchored = SplatAsset([SplatPrimitive(cloud, Anchoring(mesh, local), "body"),
-                           SplatPrimitive(cloud.subset([0, 1, 2]), None, "static")])
-    out: list[tuple[str, bytes]] = []
-    for asset, kw in ((anchored, {}),
-                      (anchored, {"quantize": {"barycentrics": "unsigned_short",
-                                               "localRotation": "byte"}}),
-                      (SplatAsset([SplatPrimitive(gcloud, Anchoring(mesh, games), "g")]), {})):
-        gltf = asset_to_gltf(asset, **kw)
-        out.append((".glb", gltf_to_bytes(gltf, binary=True)))
-    out.append((".gltf", gltf_to_bytes(asset_to_gltf(SplatAsset(
-        [SplatPrimitive(gcloud, Anchoring(mesh, games), "g")])), binary=False)))
-    with tempfile.TemporaryDirectory() as tmp:
-        for name, kw in (("le.ply", {}), ("be.ply", {"byte_order": ">"}),
-                         ("ascii.ply", {"binary": False}), ("n.ply", {"normals": True})):
-            path = os.path.join(tmp, name)
-            write_splat_ply(cloud.subset(range(6)), path, **kw)
-            with open(path, "rb") as handle:
-                out.append((".ply", handle.read()))
-    v = mesh.vertices
-    header = (f"ply\nformat ascii 1.0\nelement vertex {len(v)}\nproperty float x\n"
-              f"property float y\nproperty float z\nelement face {mesh.face_count}\n"
-              f"property list uchar int vertex_indices\nend_header\n")
-    body = "".join(f"{a:.6g} {b:.6g} {c:.6g}\n" for a, b, c in v.tolist())
-    body += "".join(f"3 {a} {b} {c}\n" for a, b, c in mesh.faces.tolist())
-    out.append((".ply", (header + body).encode()))
-    binary = (header.replace("ascii", "binary_little_endian").encode()
-              + v.astype("<f4").tobytes()
-              + b"".join(b"\x03" + struct.pack("<3i", *f) for f in mesh.faces.tolist()))
-    out.append((".ply", binary))
-    return out
-
-
-# ---------------------------------------------------------------------------- mutations
-
-def _glb_parts(data: bytes):
-    """(json bytes, bin bytes or None) of a well-formed GLB, else None."""
-    if len(data) < 20 or data[:4] != b"glTF":
-        return None
-    size, kind = struct.unpack_from("<II", data, 12)
-    if kind != 0x4E4F534A or 20 + size > len(data):
-        return None
-    text = data[20:20 + size]
-    rest = data[20 + size:]
-    binary = None
-    if len(rest) >= 8:
-        bsize, bkind = struct.unpack_from("<II", rest, 0)
-        binary = rest[8:8 + bsize] if bkind == 0x004E4942 else None
-    return text, binary
-
-
-def _glb(text: bytes, binary: bytes | None) -> bytes:
-    from gsverse_format.io.gltf import glb_bytes
-
-    return glb_bytes(text, binary)
-
-
-def _mutate_json(rng: random.Random, text: bytes) -> bytes:
-    choice = rng.randrange(5)
-    if choice <= 1:
-        numbers = list(_NUMBER.finditer(text))
-        if numbers:
-            m = rng.choice(numbers)
-            value = rng.choice(INTERESTING_NUMBERS).encode()
-            if rng.random() < 0.3 and m.group().lstrip(b"-").isdigit():  # off by one
-                value = str(int(m.group()) + rng.choice((-1, 1))).encode()
-            return text[:m.start()] + value + text[m.end():]
-    if choice == 2:
-        keys = list(_KEY.finditer(text))
-        if keys:  # rename a key (drops the property)
-            m = rng.choice(keys)
-            return text[:m.start(1)] + b"_" + text[m.start(1):]
-    if choice == 3:
-        try:
-            doc = json.loads(text)
-        except ValueError:
-            return text
-        _mutate_tree(rng, doc, 0)
-        return json.dumps(doc).encode()
-    # string edits: an interesting string in place of a random string value
-    strings = list(re.finditer(rb':\s*"([^"\\]*)"', text))
-    if strings:
-        m = rng.choice(strings)
-        value = rng.choice((b"", b"../x.bin", b"/etc/passwd", b"http://x", b"data:,", b"\xff",
-                            b"rigid", b"games", b"local", b"POINTS", b"\\u0000"))
-        return text[:m.start(1)] + value + text[m.end(1):]
-    return text
-
-
-def _mutate_tree(rng: random.Random, node, depth: int) -> None:
-    """Structural JSON edits: drop, duplicate or retype members, append array elements."""
-    if depth > 12:
-        return
-    if isinstance(node, dict) and node:
-        key = rng.choice(list(node))
-        r = rng.random()
-        if r < 0.25:
-            del node[key]
-        elif r < 0.4:
-            node[key] = rng.choice((None, -1, 0, 2 ** 40, 1.5, "x", [], {}, [0, 0]))
-        else:
-            _mutate_tree(rng, node[key], depth + 1)
-    elif isinstance(node, list) and node:
-        i = rng.randrange(len(node))
-        r = rng.random()
-        if r < 0.2:
-            node.append(node[i])
-        elif r < 0.3:
-            del node[i]
-        else:
-            _mutate_tree(rng, node[i], depth + 1)
-
-
-def _mutate_ply_header(rng: random.Random, data: bytes) -> bytes:
-    end = data.find(b"end_header")
-    if end < 0:
-        return data
-    header, body = data[:end], data[end:]
-    lines = header.split(b"\n")
-    i = rng.randrange(len(lines))
-    line = lines[i]
-    if line.startswith(b"element"):
-        parts = line.split()
-        if len(parts) == 3:
-            parts[2] = rng.choice((b"0", b"1", b"-1", b"1000000000000", b"4294967296", b"x",
-                                   str(int(parts[2]) + rng.choice((-1, 1)) if parts[2].isdigit()
-                                       else 0).encode()))
-            lines[i] = b" ".join(parts)
-    elif line.startswith(b"property"):
-        types = (b"char", b"uchar", b"short", b"ushort", b"int", b"uint", b"float", b"double",
-                 b"float16", b"list uchar int", b"list int float")
-        parts = line.split()
-        lines[i] = b"property " + rng.choice(types) + b" " + parts[-1]
-    elif line.startswith(b"format"):
-        lines[i] = b"format " + rng.choice((b"ascii", b"binary_little_endian",
-                                             b"binary_big_endian", b"binary")) + b" 1.0"
-    else:
-        if rng.random() < 0.5:
-            del lines[i]
-        else:
-            lines.insert(i, rng.choice((b"comment x", b"obj_info y", b"element face 3",
-                                        b"property float x", b"end_header")))
-    return b"\n".join(lines) + (body if rng.random() > 0.05 else body[10:])
-
-
-def mutate(rng: random.Random, suffix: str, data: bytes, pool: list[tuple[str, bytes]]) -> bytes:
-    """One random mutation of ``data`` (a file of kind ``suffix``)."""
-    kind = rng.randrange(12)
-    n = len(data)
-    if kind == 0 and suffix == ".glb":
-        parts = _glb_parts(data)
-        if parts:
-            return _glb(_mutate_json(rng, parts[0]), parts[1])
-    if kind == 1 and suffix == ".gltf":
-        return _mutate_json(rng, data)
-    if kind == 2 and suffix == ".ply":
-        return _mutate_ply_header(rng, data)
-    if n == 0:
-        return bytes([rng.randrange(256)])
-    buf = bytearray(data)
-    if kind in (0, 1, 2, 3):  # flip bits
-        for _ in range(rng.randint(1, 8)):
-            buf[rng.randrange(n)] ^= 1 << rng.randrange(8)
-    elif kind == 4:  # interesting bytes
-        for _ in range(rng.randint(1, 4)):
-            buf[rng.randrange(n)] = rng.choice((0, 1, 0x7F, 0x80, 0xFF, 0x20, 0x0A, 0x22))
-    elif kind == 5 and n >= 4:  # interesting 32-bit words (GLB header, chunk lengths, data)
-        pos = rng.randrange(0, n - 3) & ~3 if rng.random() < 0.7 else rng.randrange(n - 3)
-        if rng.random() < 0.3 and suffix == ".glb":
-            pos = rng.choice((4, 8, 12, 16)) if n >= 20 else pos
-        value = rng.choice(INTERESTING_U32 + (n, n - 4, n + 4, n // 2))
-        struct.pack_into("<I", buf, pos, value & 0xFFFFFFFF)
-    elif kind == 6:  # truncate
-        return bytes(buf[:rng.randrange(n)])
-    elif kind == 7:  # insert
-        pos = rng.randrange(n + 1)
-        buf[pos:pos] = bytes(rng.randrange(256) for _ in range(rng.randint(1, 16)))
-    elif kind == 8:  # delete a range
-        a = rng.randrange(n)
-        del buf[a:a + rng.randint(1, 64)]
-    elif kind == 9:  # duplicate a range
-        a = rng.randrange(n)
-        piece = buf[a:a + rng.randint(1, 256)]
-        pos = rng.randrange(n)
-        buf[pos:pos] = piece
-    elif kind == 10:  # splice with another input
-        other = rng.choice(pool)[1]
-        if other:
-            a = rng.randrange(n)
-            b = rng.randrange(len(other))
-            return bytes(buf[:a]) + other[b:b + rng.randint(1, 512)] + bytes(buf[a:])
-    else:  # NaN / Inf floats into the data
-        if n >= 4:
-            pos = rng.randrange(n - 3)
-            buf[pos:pos + 4] = struct.pack("<f", rng.choice((float("nan"), float("inf"),
-                                                             -float("inf"), 1e38, -0.0)))
-    return bytes(buf)
+#: The outcomes of running one target on one input; the last two are failures.
+OUTCOMES = ("ok", "refused", "internal", "hang")
+#: Kinds of input, by file name suffix.
+KINDS = (".glb", ".gltf", ".ply", ".usda", ".usdc")
+#: The program of the USD worker child (``python -c USD_WORKER_CODE``).
+USD_WORKER_CODE = "from fuzz.usd_worker import main; main()"
+#: Marks the targets run by the USD worker in :func:`make_targets`.
+IN_USD_WORKER = None
+#: Inputs are cut to this many bytes.
+MAX_INPUT = 4 * 2 ** 20
+#: Seconds a new USD worker may take to start (imports), on top of the per-target timeout.
+STARTUP = 60.0
+_ROOT = str(pathlib.Path(__file__).resolve().parents[1])
 
 
 # ---------------------------------------------------------------------------- targets
@@ -281,20 +89,19 @@ class _Hang(Exception):
     pass
 
 
-def _targets() -> dict[str, list[tuple[str, Callable[[str], object]]]]:
+def make_targets(usd: str = "worker") -> dict[str, list[tuple[str, Any]]]:
+    """Target name and function per kind of input. The USD targets run in the
+    :class:`UsdWorker` (``usd="worker"``) or, with ``usd="api"``, through the public API, one
+    child process per input (:func:`~gsverse_format.io.usd.read_usd` with ``isolate=True``,
+    the validator's own isolation)."""
     from gsverse_format.io.gltf import read_gltf
     from gsverse_format.io.mesh import read_mesh
     from gsverse_format.io.ply import read_ply_elements, read_ply_mesh, read_splat_ply
-    from gsverse_format.codes import Code
     from gsverse_format.validators.container import Options
     from gsverse_format.validators.validate import validate_file
 
     def validate(path: str):
-        report = validate_file(path, Options(max_bytes=64 * 2 ** 20))
-        internal = [f for f in report.findings if f.code == Code.INTERNAL_ERROR]
-        if internal:
-            raise AssertionError(f"validator INTERNAL_ERROR: {internal[0].message}")
-        return report
+        return validate_file(path, Options(max_bytes=64 * 2 ** 20))
 
     def read_usd(path: str):
         from gsverse_format.io.usd import read_usd as read
@@ -302,9 +109,140 @@ def _targets() -> dict[str, list[tuple[str, Callable[[str], object]]]]:
         return read(path, isolate=True)   # the USD library itself may crash: a child process
 
     gltf = [("read_gltf", read_gltf), ("read_mesh", read_mesh), ("validate", validate)]
-    return {".glb": gltf, ".gltf": gltf, ".usda": [("read_usd", read_usd), ("validate", validate)],
+    usd_targets = ([("read_usd", IN_USD_WORKER), ("validate_usd", IN_USD_WORKER)]
+                   if usd == "worker" else [("read_usd", read_usd), ("validate_usd", validate)])
+    return {".glb": gltf, ".gltf": gltf, ".usda": usd_targets, ".usdc": usd_targets,
             ".ply": [("read_splat_ply", read_splat_ply), ("read_ply_elements", read_ply_elements),
                      ("read_ply_mesh", read_ply_mesh), ("read_mesh", read_mesh)]}
+
+
+def _child_limits(memory: int) -> Callable[[], None]:  # pragma: no cover - in the child
+    """Address-space cap and no core files for the USD worker (as for the isolation child)."""
+    def apply() -> None:
+        try:
+            import resource
+
+            resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
+            resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+        except (ImportError, ValueError, OSError):
+            pass
+    return apply
+
+
+def classify_report(report: Any) -> tuple[str, str]:
+    """(outcome, detail) of a validation report: an ``INTERNAL_ERROR`` finding is an internal
+    error, errors a refusal."""
+    from gsverse_format.codes import Code
+
+    internal = [f for f in report.findings if f.code == Code.INTERNAL_ERROR]
+    if internal:
+        return "internal", f"validator INTERNAL_ERROR: {internal[0].message}"
+    return ("refused" if report.exit_status else "ok"), ""
+
+
+class UsdWorker:
+    """The parent side of :mod:`fuzz.usd_worker`: one child kept alive across inputs, started
+    again when the USD library ends it; ``timeout`` seconds per target."""
+
+    def __init__(self, timeout: float) -> None:
+        self.timeout = timeout
+        self.proc: subprocess.Popen | None = None
+        self.buffer = b""
+        self.starts = 0
+        self.library_crashes = 0
+        self.fresh = False
+
+    def _start(self) -> None:
+        from gsverse_format.io.usd.isolation import CHILD_MEMORY_BASE
+
+        env = dict(os.environ)
+        env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"]
+                                     if env.get("PYTHONPATH") else "")
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", USD_WORKER_CODE, str(self.timeout)], cwd=_ROOT, env=env,
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+            preexec_fn=_child_limits(CHILD_MEMORY_BASE + 32 * MAX_INPUT)
+            if os.name == "posix" else None)
+        self.buffer = b""
+        self.starts += 1
+        self.fresh = True
+
+    def close(self) -> None:
+        if self.proc is not None:
+            with contextlib.suppress(OSError):
+                self.proc.stdin.close()
+            try:
+                self.proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+            self.proc = None
+
+    def _line(self, seconds: float) -> bytes | None:
+        """The next line from the child; b"" when it ended, None after ``seconds``."""
+        assert self.proc is not None and self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        end = time.monotonic() + seconds
+        while b"\n" not in self.buffer:
+            left = end - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return None
+            chunk = os.read(fd, 1 << 16)
+            if not chunk:
+                return b""
+            self.buffer += chunk
+        line, self.buffer = self.buffer.split(b"\n", 1)
+        return line
+
+    def _ended(self) -> tuple[str, str]:
+        """Outcome for the target the child was running when it ended."""
+        assert self.proc is not None
+        code = self.proc.wait()
+        self.proc = None
+        if code < 0:  # a signal: the USD library crashed on this input (isolation's rule)
+            self.library_crashes += 1
+            try:
+                name = signal.Signals(-code).name
+            except ValueError:
+                name = f"signal {-code}"
+            return "refused", f"corrupt USD file: the USD library crashed reading it ({name})"
+        return "internal", f"the USD worker exited with status {code}"
+
+    def run(self, path: str, names: list[str]) -> list[tuple[str, str, str, tuple]]:
+        """(target, outcome, detail, codes) for each of ``names`` on ``path`` (after a hang,
+        for the targets run so far)."""
+        out: list[tuple[str, str, str, tuple]] = []
+        todo = list(names)
+        while todo:
+            if self.proc is None:
+                self._start()
+            assert self.proc is not None and self.proc.stdin is not None
+            try:
+                self.proc.stdin.write(json.dumps({"path": path, "targets": todo}).encode()
+                                      + b"\n")
+                self.proc.stdin.flush()
+            except BrokenPipeError:
+                self.proc.wait()
+                self.proc = None
+                continue
+            for name in list(todo):
+                # the first request of a new child also pays for its imports
+                line = self._line(self.timeout + (STARTUP if self.fresh else 0))
+                self.fresh = False
+                todo.remove(name)
+                if line is None:
+                    self.proc.kill()
+                    self.proc.wait()
+                    self.proc = None
+                    out.append((name, "hang", f"more than {self.timeout:g} s", ()))
+                    return out  # the other targets would hang on the same layer: not run
+                if not line:
+                    outcome, detail = self._ended()
+                    out.append((name, outcome, detail, ()))
+                    break
+                reply = json.loads(line)
+                out.append((name, reply["outcome"], reply["detail"], tuple(reply["codes"])))
+        return out
 
 
 @dataclass
@@ -318,62 +256,102 @@ class Failure:
 
 @dataclass
 class Fuzzer:
-    """Runs inputs through the targets; keeps statistics and failures."""
+    """Runs inputs through the targets; keeps statistics and failures (internal errors and
+    hangs)."""
 
     workdir: str
     timeout: float = 10.0
     crash_dir: str | None = None
-    targets: dict = field(default_factory=_targets)
+    targets: dict = field(default_factory=make_targets)
     runs: int = 0
     outcomes: dict[str, dict[str, int]] = field(default_factory=dict)
     failures: list[Failure] = field(default_factory=list)
     slowest: float = 0.0
     signatures: set = field(default_factory=set)
     corpus_size: int = 0
+    usd_worker: UsdWorker | None = None
+    interrupted: bool = False
+    warned: dict[str, list] = field(default_factory=dict)
 
     def run_one(self, suffix: str, data: bytes) -> bool:
         """Run every target of ``suffix`` on ``data``; True when it reached a new outcome."""
-        from gsverse_format.errors import GsverseError
-
         self.runs += 1
         path = os.path.join(self.workdir, "input" + suffix)
         with open(path, "wb") as handle:
             handle.write(data)
-        new = False
-        for name, fn in self.targets[suffix]:
+        results = []
+        worker = [name for name, fn in self.targets[suffix] if fn is IN_USD_WORKER]
+        if worker:
+            if self.usd_worker is None:
+                self.usd_worker = UsdWorker(self.timeout)
+            # A new folder per USD input: the USD library caches layers by path.
+            folder = os.path.join(self.workdir, f"usd{self.runs}")
+            os.makedirs(folder)
+            os.replace(path, os.path.join(folder, "input" + suffix))
+            path = os.path.join(folder, "input" + suffix)
             start = time.perf_counter()
-            outcome = "ok"
-            sig = None
-            try:
-                with _deadline(self.timeout):
-                    result = fn(path)
-                if hasattr(result, "codes"):  # a validation report: its set of codes
-                    sig = (name, tuple(sorted(result.codes())))
-            except GsverseError as err:
-                outcome = "rejected"
-                cause = re.sub(r"'[^']*'|\"[^\"]*\"|\([^)]*\)", "_", err.cause)
-                sig = (name, re.sub(r"\d+", "#", cause)[:60])
-            except _Hang:
-                outcome = "hang"
-                self._fail(name, suffix, "hang", f"more than {self.timeout:g} s", data)
-            except BaseException as err:  # noqa: BLE001 - any other exception is the finding
-                if isinstance(err, KeyboardInterrupt):
-                    raise
-                outcome = "crash"
-                tb = traceback.extract_tb(err.__traceback__)
-                where = f"{os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else "?"
-                self._fail(name, suffix, "crash", f"{type(err).__name__}: {err} at {where}"[:400],
-                           data)
-            if sig is not None and sig not in self.signatures:
+            results += [(n, o, d, (n, o) + c if c else (n, o, _shape(d)), 0.0)
+                        for n, o, d, c in self.usd_worker.run(path, worker)]
+            if results:
+                elapsed = (time.perf_counter() - start) / len(results)
+                results = [r[:4] + (elapsed,) for r in results]
+        for name, fn in self.targets[suffix]:
+            if fn is not IN_USD_WORKER:
+                results.append(self._call(name, fn, path))
+        new = False
+        for name, outcome, detail, sig, elapsed in results:
+            if outcome in ("internal", "hang"):
+                self._fail(name, suffix, outcome, detail, data)
+            if sig not in self.signatures:
                 self.signatures.add(sig)
                 new = True
-            elapsed = time.perf_counter() - start
             self.slowest = max(self.slowest, elapsed)
             if elapsed > self.timeout and outcome != "hang":
                 self._fail(name, suffix, "hang", f"took {elapsed:.1f} s", data)
             stats = self.outcomes.setdefault(name, {})
             stats[outcome] = stats.get(outcome, 0) + 1
+        if worker:
+            with contextlib.suppress(OSError):
+                os.remove(path)
+                os.rmdir(os.path.dirname(path))
         return new
+
+    def _call(self, name: str, fn: Callable[[str], object], path: str):
+        from gsverse_format.errors import GsverseError
+
+        start = time.perf_counter()
+        outcome, detail, sig = "ok", "", (name, "ok")
+        caught: list = []
+        try:
+            with _deadline(self.timeout), warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                result = fn(path)
+            if hasattr(result, "findings"):  # a validation report: its outcome and codes
+                outcome, detail = classify_report(result)
+                sig = (name, outcome) + tuple(sorted(c.value for c in result.codes()))
+        except GsverseError as err:
+            outcome, detail = "refused", err.cause
+            sig = (name, outcome, _shape(err.cause))
+        except _Hang:
+            outcome, detail = "hang", f"more than {self.timeout:g} s"
+            sig = (name, outcome)
+        except BaseException as err:  # noqa: BLE001 - any other exception is the finding
+            if isinstance(err, KeyboardInterrupt):
+                raise
+            tb = traceback.extract_tb(err.__traceback__)
+            where = f"{os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else "?"
+            outcome, detail = "internal", f"{type(err).__name__}: {err} at {where}"[:400]
+            sig = (name, outcome, type(err).__name__, where)
+        numeric = [w for w in caught if issubclass(w.category, RuntimeWarning)]
+        if numeric:  # numpy's overflow/invalid warnings would reach the user's terminal
+            w = numeric[0]
+            self.warned.setdefault(name, [0, f"{w.message} at "
+                                   f"{os.path.basename(w.filename)}:{w.lineno}"])[0] += 1
+        return name, outcome, detail, sig, time.perf_counter() - start
+
+    def close(self) -> None:
+        if self.usd_worker is not None:
+            self.usd_worker.close()
 
     def _fail(self, target: str, suffix: str, kind: str, detail: str, data: bytes) -> None:
         saved = None
@@ -384,6 +362,13 @@ class Fuzzer:
             with open(saved, "wb") as handle:
                 handle.write(data)
         self.failures.append(Failure(target, suffix, kind, detail, saved))
+
+
+def _shape(cause: str) -> str:
+    """A refusal's message without its numbers and quoted names (one corpus signature for
+    the same reason with other values)."""
+    cause = re.sub(r"'[^']*'|\"[^\"]*\"|\([^)]*\)", "_", cause)
+    return re.sub(r"\d+", "#", cause)[:60]
 
 
 @contextlib.contextmanager
@@ -418,42 +403,58 @@ def _limit_memory(limit: int | None) -> None:
         pass
 
 
+#: Share of the inputs of each kind when all kinds run.
+WEIGHTS = {".glb": 0.3, ".gltf": 0.15, ".ply": 0.3, ".usda": 0.15, ".usdc": 0.1}
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
 def run_builtin(runs: int, seed: int, timeout: float, crash_dir: str | None,
-                progress: bool = False) -> Fuzzer:
-    """The seeded mutation fuzzer: ``runs`` inputs (the seeds themselves first)."""
+                progress: bool = False, kinds: tuple[str, ...] = KINDS,
+                usd: str = "worker") -> Fuzzer:
+    """The seeded mutation fuzzer: ``runs`` inputs of ``kinds`` (the seeds themselves first)."""
     rng = random.Random(seed)
-    initial = seeds()
+    initial = [(s, d) for s, d in seeds() if s in kinds]
     corpus: dict[str, list[bytes]] = {}
     for suffix, data in initial:
         corpus.setdefault(suffix, []).append(data)
-    kinds, weights = [".glb", ".gltf", ".ply"], [0.4, 0.2, 0.4]
+    present = [k for k in kinds if k in corpus]
+    weights = [WEIGHTS[k] for k in present]
     with tempfile.TemporaryDirectory(prefix="gsverse-fuzz-") as work:
-        fuzzer = Fuzzer(work, timeout, crash_dir)
-        for suffix, data in initial[:runs]:
-            fuzzer.run_one(suffix, data)
-        start = time.perf_counter()
-        while fuzzer.runs < runs:
-            suffix = rng.choices(kinds, weights)[0]
-            pool = corpus[suffix]
-            # Favour the seeds: most inputs start from a valid file.
-            data = rng.choice(pool[:len(pool) if rng.random() < 0.5 else 8])
-            flat = [(s, d) for s in kinds for d in corpus[s][:8]]
-            for _ in range(rng.choice((1, 1, 1, 2, 3))):
-                data = mutate(rng, suffix, data, flat)
-            if len(data) > 4 * 2 ** 20:
-                data = data[:4 * 2 ** 20]
-            if fuzzer.run_one(suffix, data) and len(pool) < 1000:
-                pool.append(data)
-            if progress and fuzzer.runs % 5000 == 0:
-                rate = fuzzer.runs / max(time.perf_counter() - start, 1e-9)
-                sys.stderr.write(f"  {fuzzer.runs} inputs, {len(fuzzer.failures)} failures, "
-                                 f"corpus {sum(map(len, corpus.values()))}, {rate:.0f}/s\n")
+        fuzzer = Fuzzer(work, timeout, crash_dir, make_targets(usd))
+        try:
+            for suffix, data in initial[:runs]:
+                fuzzer.run_one(suffix, data)
+            start = time.perf_counter()
+            while fuzzer.runs < runs and not fuzzer.interrupted:
+                suffix = rng.choices(present, weights)[0]
+                pool = corpus[suffix]
+                # Favour the seeds: most inputs start from a valid file.
+                data = rng.choice(pool[:len(pool) if rng.random() < 0.5 else 8])
+                flat = [(s, d) for s in present for d in corpus[s][:8]]
+                for _ in range(rng.choice((1, 1, 1, 2, 3))):
+                    data = mutate(rng, suffix, data, flat)
+                if len(data) > MAX_INPUT:
+                    data = data[:MAX_INPUT]
+                try:
+                    if fuzzer.run_one(suffix, data) and len(pool) < 1000:
+                        pool.append(data)
+                except KeyboardInterrupt:  # Ctrl-C, SIGTERM: stop, and report what ran
+                    fuzzer.interrupted = True
+                if progress and fuzzer.runs % 5000 == 0:
+                    rate = fuzzer.runs / max(time.perf_counter() - start, 1e-9)
+                    sys.stderr.write(f"  {fuzzer.runs} inputs, {len(fuzzer.failures)} failures, "
+                                     f"corpus {sum(map(len, corpus.values()))}, {rate:.0f}/s\n")
+        finally:
+            fuzzer.close()
         fuzzer.corpus_size = sum(map(len, corpus.values()))
     return fuzzer
 
 
 def run_atheris(runs: int, timeout: float, crash_dir: str | None) -> int:  # pragma: no cover
-    """Coverage-guided run under libFuzzer (needs ``pip install atheris``)."""
+    """Coverage-guided run under libFuzzer (needs ``pip install atheris``; glTF and PLY)."""
     import atheris
 
     with atheris.instrument_imports(include=["gsverse_format"]):
@@ -461,27 +462,24 @@ def run_atheris(runs: int, timeout: float, crash_dir: str | None) -> int:  # pra
         import gsverse_format.io.ply  # noqa: F401
         import gsverse_format.io.mesh  # noqa: F401
         import gsverse_format.validators.validate  # noqa: F401
-    from gsverse_format.errors import GsverseError
 
     work = tempfile.mkdtemp(prefix="gsverse-fuzz-")
     corpus_dir = os.path.join(work, "corpus")
     os.makedirs(corpus_dir)
     for i, (suffix, data) in enumerate(seeds()):
-        with open(os.path.join(corpus_dir, f"seed{i}{suffix}"), "wb") as handle:
-            handle.write(data)
-    targets = _targets()
+        if suffix in (".glb", ".gltf", ".ply"):
+            with open(os.path.join(corpus_dir, f"seed{i}{suffix}"), "wb") as handle:
+                handle.write(data)
+    fuzzer = Fuzzer(work, timeout, crash_dir)
 
     def one(data: bytes) -> None:
         suffix = (".glb" if data[:4] == b"glTF" else ".ply" if data[:3] == b"ply"
                   else ".gltf")
-        path = os.path.join(work, "input" + suffix)
-        with open(path, "wb") as handle:
-            handle.write(data)
-        for _, fn in targets[suffix]:
-            try:
-                fn(path)
-            except GsverseError:
-                pass
+        before = len(fuzzer.failures)
+        fuzzer.run_one(suffix, data)
+        if len(fuzzer.failures) > before:
+            failure = fuzzer.failures[-1]
+            raise RuntimeError(f"{failure.kind} in {failure.target}: {failure.detail}")
 
     args = [sys.argv[0], f"-runs={runs}", f"-timeout={int(max(timeout, 1))}",
             "-max_len=65536", corpus_dir]
@@ -498,8 +496,14 @@ def main(argv: list[str] | None = None) -> int:
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100000, help="inputs to run (default 100000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (builtin engine)")
+    parser.add_argument("--kinds", default=",".join(k.lstrip(".") for k in KINDS),
+                        help="kinds of input, comma-separated (default: all: "
+                             "glb,gltf,ply,usda,usdc)")
+    parser.add_argument("--usd", choices=("worker", "api"), default="worker",
+                        help="run the USD targets in one long-lived child (default) or through "
+                             "the public API, one child process per input (slow)")
     parser.add_argument("--timeout", type=float, default=10.0,
-                        help="seconds one reader may take on one input (default 10)")
+                        help="seconds one target may take on one input (default 10)")
     parser.add_argument("--crash-dir", default=None,
                         help="keep failing inputs here (default: a new temporary folder)")
     parser.add_argument("--engine", choices=("builtin", "atheris"), default="builtin")
@@ -509,20 +513,35 @@ def main(argv: list[str] | None = None) -> int:
                              " 0: none)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     args = parser.parse_args(argv)
+    kinds = tuple("." + k.strip().lstrip(".") for k in args.kinds.split(",") if k.strip())
+    unknown = [k for k in kinds if k not in KINDS]
+    if unknown or not kinds:
+        parser.error(f"unknown kind(s) {', '.join(unknown) or '(none)'}; use "
+                     f"{','.join(k.lstrip('.') for k in KINDS)}")
     _limit_memory(args.memory_limit)
+    signal.signal(signal.SIGTERM, _interrupt)
     crash_dir = args.crash_dir or tempfile.mkdtemp(prefix="gsverse-fuzz-crashes-")
     if args.engine == "atheris":
         return run_atheris(args.runs, args.timeout, crash_dir)
     start = time.perf_counter()
-    fuzzer = run_builtin(args.runs, args.seed, args.timeout, crash_dir, not args.quiet)
+    fuzzer = run_builtin(args.runs, args.seed, args.timeout, crash_dir, not args.quiet, kinds,
+                         args.usd)
     elapsed = time.perf_counter() - start
-    crashes = sum(1 for f in fuzzer.failures if f.kind == "crash")
+    internal = sum(1 for f in fuzzer.failures if f.kind == "internal")
     hangs = sum(1 for f in fuzzer.failures if f.kind == "hang")
-    print(f"inputs: {fuzzer.runs}  crashes: {crashes}  hangs: {hangs}  "
-          f"corpus: {fuzzer.corpus_size}  distinct rejections: {len(fuzzer.signatures)}  "
-          f"slowest: {fuzzer.slowest:.3f} s  time: {elapsed:.1f} s  seed: {args.seed}")
+    print(f"inputs: {fuzzer.runs}  internal errors: {internal}  hangs: {hangs}  "
+          f"corpus: {fuzzer.corpus_size}  distinct outcomes: {len(fuzzer.signatures)}  "
+          f"slowest: {fuzzer.slowest:.3f} s  time: {elapsed:.1f} s  seed: {args.seed}"
+          + ("  (interrupted)" if fuzzer.interrupted else ""))
     for name, stats in sorted(fuzzer.outcomes.items()):
-        print(f"  {name:<18} " + "  ".join(f"{k} {v}" for k, v in sorted(stats.items())))
+        print(f"  {name:<18} runs {sum(stats.values()):>7}  "
+              + "  ".join(f"{k} {stats.get(k, 0)}" for k in OUTCOMES))
+    for name, (count, first) in sorted(fuzzer.warned.items()):
+        print(f"  {name}: {count} input(s) raised a RuntimeWarning (printed to users), e.g. "
+              f"{first}")
+    if fuzzer.usd_worker is not None:
+        print(f"  USD worker: {fuzzer.usd_worker.starts} start(s), "
+              f"{fuzzer.usd_worker.library_crashes} USD library crash(es) counted as refusals")
     for f in fuzzer.failures[:20]:
         print(f"FAIL {f.kind} {f.target} {f.suffix}: {f.detail} -> {f.saved}")
     if not fuzzer.failures:

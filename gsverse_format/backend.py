@@ -22,19 +22,68 @@ which is, in this order:
 
 Asking for ``numba`` (by argument, :func:`set_backend` or the environment) where numba cannot
 be imported raises :class:`BackendUnavailableError`; an unknown name raises ``ValueError``.
+
+Small inputs (cold start)
+    numba compiles a kernel on its first call and caches the machine code on disk
+    (``cache=True``: in ``__pycache__`` beside the module, or under ``NUMBA_CACHE_DIR``). On a
+    fresh install the README's first conversion (3,000 splats, 1,280 faces) spent 8.4 s compiling
+    the 14 functions of the nearest-triangle search, against 0.84 s with the cache filled; even
+    warm, importing numba and loading those cached kernels costs about 0.43 s in a new process,
+    where the numpy reference answers that query in 0.05 s. So ``"auto"`` (only ``"auto"``, and
+    only when neither :func:`set_backend` nor ``GSVERSE_BACKEND`` chose) runs the numpy
+    reference for a job whose size is below that computation's threshold, without importing
+    numba at all:
+
+    * nearest triangles: points + faces below :data:`NEAREST_NUMPY_BELOW` (32,768). Measured
+      (2-core EPYC, one process per row, first call with the kernels in the on-disk cache):
+      numba 0.43 s at 3,000 points × 1,280 faces, 0.43–0.51 s at 20,000 × 5,120 and 0.47 s at
+      40,000 × 20,480; the numpy reference 0.05 s, 0.27 s and 0.73 s. The two cross near
+      points + faces ≈ 40,000, and below the threshold the reference stays under about 0.4 s;
+    * one-shot remaps (:func:`gsverse_format.remap_fast.remap_auto`): splats below
+      :data:`REMAP_NUMPY_BELOW` (65,536). At 65,536 splats the float64 reference took 0.36 s
+      of CPU (``local``/affine, with rotations and scales; 0.08 s rigid, 0.05 s games; 0.03 s
+      at 3,000 splats), while compiling the remap kernels in a fresh cache took 9.5 s
+      (``local``) and 6.1 s (games). A :class:`~gsverse_format.remap_fast.FastRemapper` is
+      built for per-frame use and keeps numba under ``"auto"``.
+
+    Both implementations give the same results (bit for bit for the nearest search, within the
+    float32 bounds of :mod:`gsverse_format.remap_bounds` for the remap), so the threshold
+    changes only the time. ``tests/test_backend.py`` checks, in a fresh process with an empty
+    ``NUMBA_CACHE_DIR``, that converting and validating the README example never imports numba.
+
+Threading layer
+    :func:`configure_numba` (called by :func:`numba_available` and by every compiled module
+    when imported) sets numba's threading-layer priority to OpenMP, then TBB, then the built-in
+    workqueue (numba's default tries TBB first). pymeshlab bundles an older libtbb; once it is
+    loaded, numba's TBB probe warned "The TBB threading layer requires TBB version 2021 update
+    6 or later" and then fell back to OpenMP anyway, so trying OpenMP first removes the warning
+    and changes no speed (the same layer runs). workqueue stays last: it is not thread-safe
+    (two Python threads launching kernels at once abort the process, e.g. a Dask worker with
+    several threads). ``NUMBA_THREADING_LAYER`` or ``NUMBA_THREADING_LAYER_PRIORITY`` set in
+    the environment are left as the user set them; the remap section of ``python -m benchmarks``
+    notes the layer in use.
 """
 from __future__ import annotations
 
 import os
 from functools import lru_cache
 
-__all__ = ["BACKENDS", "ENVIRONMENT_VARIABLE", "BackendUnavailableError", "get_backend",
-           "set_backend", "resolve_backend", "numba_available", "numba_unavailable_reason"]
+__all__ = ["BACKENDS", "ENVIRONMENT_VARIABLE", "NEAREST_NUMPY_BELOW", "REMAP_NUMPY_BELOW",
+           "BackendUnavailableError", "get_backend", "set_backend", "resolve_backend",
+           "numba_available", "numba_unavailable_reason", "configure_numba"]
 
 #: The names a backend argument, :func:`set_backend` and ``GSVERSE_BACKEND`` accept.
 BACKENDS: tuple[str, ...] = ("auto", "numba", "numpy")
 #: The environment variable that sets the process-wide choice (see the module docstring).
 ENVIRONMENT_VARIABLE = "GSVERSE_BACKEND"
+
+#: ``"auto"`` runs the numpy nearest-triangle search below this many points + faces
+#: (see "Small inputs" in the module docstring for the measurement).
+NEAREST_NUMPY_BELOW = 32_768
+#: ``"auto"`` runs a one-shot remap on the numpy reference below this many splats.
+REMAP_NUMPY_BELOW = 65_536
+#: numba's threading layers in the order this package prefers them (see the module docstring).
+THREADING_LAYER_PRIORITY = ["omp", "tbb", "workqueue"]
 
 _chosen: str | None = None
 
@@ -71,10 +120,22 @@ def get_backend() -> str:
 def numba_unavailable_reason() -> str | None:
     """Why numba cannot be imported (``"ImportError: ..."``), or None when it can."""
     try:
-        import numba  # noqa: F401
+        configure_numba()
     except Exception as exc:  # ImportError, or a broken llvmlite / numpy combination
         return f"{type(exc).__name__}: {exc}"
     return None
+
+
+def configure_numba() -> None:
+    """Import numba and prefer its OpenMP, then TBB, then workqueue threading layer (see
+    "Threading layer" in the module docstring), unless ``NUMBA_THREADING_LAYER`` or
+    ``NUMBA_THREADING_LAYER_PRIORITY`` is set. The compiled modules call it when imported;
+    it takes effect before numba first starts its threads."""
+    import numba
+
+    if not (os.environ.get("NUMBA_THREADING_LAYER")
+            or os.environ.get("NUMBA_THREADING_LAYER_PRIORITY")):
+        setattr(numba.config, "THREADING_LAYER_PRIORITY", list(THREADING_LAYER_PRIORITY))
 
 
 def numba_available() -> bool:
@@ -82,10 +143,13 @@ def numba_available() -> bool:
     return numba_unavailable_reason() is None
 
 
-def resolve_backend(requested: str = "auto", *, argument: str = "backend") -> str:
+def resolve_backend(requested: str = "auto", *, argument: str = "backend",
+                    size: int | None = None, numpy_below: int = 0) -> str:
     """The backend to run, ``"numba"`` or ``"numpy"``, for a ``requested`` name.
 
-    ``"auto"`` resolves through :func:`get_backend` (see the module docstring). Raises
+    ``"auto"`` resolves through :func:`get_backend` (see the module docstring); when that is
+    ``"auto"`` too and the job's ``size`` is below ``numpy_below``, the answer is ``"numpy"``
+    and numba is not imported (see "Small inputs" in the module docstring). Raises
     ``ValueError`` on an unknown name (naming ``argument``) and
     :class:`BackendUnavailableError` when ``"numba"`` is asked for and numba cannot be imported.
     """
@@ -93,6 +157,8 @@ def resolve_backend(requested: str = "auto", *, argument: str = "backend") -> st
     if value == "auto":
         value = get_backend()
         if value == "auto":
+            if size is not None and size < numpy_below:
+                return "numpy"
             return "numba" if numba_available() else "numpy"
     if value == "numba" and not numba_available():
         raise BackendUnavailableError(

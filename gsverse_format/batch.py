@@ -39,6 +39,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
+from .atomic import WRITE_ERRNOS
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
@@ -160,15 +161,18 @@ class BatchReport:
     jobs: int | None = 1  # local processes; None on Dask
     seconds: float = 0.0
     interrupted: bool = False
+    #: The exit status when interrupted: 128 + the signal's number (130 for Ctrl-C).
+    interrupt_status: int = 130
 
     def count(self, status: str) -> int:
         return sum(a.status == status for a in self.assets)
 
     @property
     def exit_status(self) -> int:
-        """0 when no asset failed, 1 otherwise (130 when interrupted)."""
+        """0 when no asset failed, 1 otherwise (when interrupted: 130, or 143 for SIGTERM, 129
+        for SIGHUP)."""
         if self.interrupted:
-            return 130
+            return self.interrupt_status
         return 1 if self.count("failed") else 0
 
     def as_dict(self) -> dict[str, Any]:
@@ -346,6 +350,9 @@ def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite:
 def _error_line(exc: BaseException, input_path: str) -> str:
     if isinstance(exc, GsverseError):
         text = str(exc)
+    elif isinstance(exc, OSError) and (exc.filename is not None or exc.errno in WRITE_ERRNOS):
+        named = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
+        text = f"{named}{exc.strerror or exc}"  # the environment's doing, not a bug
     elif isinstance(exc, MemoryError):
         text = "out of memory"
     else:
@@ -385,9 +392,12 @@ def _raise_exit(signum: int, frame: Any) -> None:  # pragma: no cover - runs in 
 
 
 def _init_worker(numba_threads: int, quiet: bool) -> None:  # pragma: no cover - in a worker
-    """A local worker: Ctrl-C is the parent's to handle; SIGTERM unwinds (an atomic write in
-    progress removes its temporary file); numba threads shared out among the workers."""
+    """A local worker: Ctrl-C and SIGHUP (sent to the whole terminal's process group) are the
+    parent's to handle, which stops the workers with SIGTERM; SIGTERM unwinds (an atomic write
+    in progress removes its temporary file); numba threads shared out among the workers."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_exit)
     if "numba" not in sys.modules:
         os.environ.setdefault("NUMBA_NUM_THREADS", str(numba_threads))
@@ -538,8 +548,9 @@ def run_batch(specs: list[AssetSpec], output_dir: str, *, jobs: int | None = Non
             _run_dask(tasks, scheduler, quiet, tick)
         else:
             _run_local(tasks, jobs, tick)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM and SIGHUP under the command line
         report.interrupted = True
+        report.interrupt_status = 128 + getattr(exc, "signum", signal.SIGINT)
     finally:
         progress.close()
     for t in tasks:

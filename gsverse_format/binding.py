@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from . import quaternion as quat
+from .anchors_derive import derive_local
 from .errors import BindingError
 from .frames import local_frames
 from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
@@ -50,28 +50,19 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     frames = local_frames(tri)
     if not np.any(frames.regular):
         raise BindingError(f"all {mesh.face_count} triangles of the anchor mesh are degenerate")
-    means = splats.means.astype(np.float64)
     if len(splats) == 0:
         empty = np.zeros(0)
         return BindResult(LocalAnchors(np.zeros(0, np.uint32), np.zeros((0, 2)), empty,
                                        np.zeros((0, 4)), np.zeros((0, 3)), law), empty,
                           int(np.count_nonzero(~frames.regular)))
-    nearest = nearest_triangles(means, mesh.vertices.astype(np.float64),
-                                mesh.faces.astype(np.int64), exclude=~frames.regular,
+    nearest = nearest_triangles(splats.means, mesh.vertices, mesh.faces, exclude=~frames.regular,
                                 progress=progress)
-    face = nearest.face.astype(np.intp)
-
-    rot = frames.rotation[face]                      # columns t, b, n
-    rel = means - tri[face, 0]
-    local = np.einsum("nji,nj->ni", rot, rel)        # (x, y, z) in the frame = Rᵀ rel
-    c = frames.shape[face]
-    b2 = local[:, 1] / c[:, 1, 1]
-    b1 = (local[:, 0] - c[:, 0, 1] * b2) / c[:, 0, 0]
-    offset = local[:, 2]
-
-    q_frame = quat.from_matrix(rot)
-    q_local = quat.canonical_sign(quat.multiply(quat.conjugate(q_frame),
-                                                quat.normalize(splats.rotations)))
-    anchors = LocalAnchors(face.astype(np.uint32), np.stack([b1, b2], axis=-1), offset,
-                           q_local, splats.scales, law)
-    return BindResult(anchors, nearest.distance, int(np.count_nonzero(~frames.regular)))
+    face, distance = nearest.face, nearest.distance
+    del nearest   # its closest points and barycentrics (48 bytes a splat) are not used here
+    # steps 2-3 of spec §Writing anchors: the rule readers of compact assets use too; float32
+    # as stored, derived a chunk at a time (the float64 temporaries stay bounded)
+    derived = derive_local(mesh, face, splats.means, splats.rotations, frames=frames,
+                           dtype=np.float32)
+    anchors = LocalAnchors(face.astype(np.uint32), derived.barycentrics, derived.normal_offset,
+                           derived.local_rotation, splats.scales, law)
+    return BindResult(anchors, distance, int(np.count_nonzero(~frames.regular)))

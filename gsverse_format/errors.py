@@ -41,3 +41,8 @@ class UsageError(GsverseError):
 
 class BindingError(GsverseError):
     """Splats cannot be bound to the given mesh (e.g. the mesh has no usable triangles)."""
+
+
+class OutputError(GsverseError):
+    """An output cannot be written where asked: the operating system refused (permissions,
+    a read-only or full file system, a file-size limit) or the path is a folder."""

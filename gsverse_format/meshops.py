@@ -39,8 +39,8 @@ from .errors import FormatError, UsageError
 from .frames import degenerate_mask
 from .model import TriangleMesh
 
-__all__ = ["MeshStats", "mesh_stats", "decimate", "weld", "repair", "clean",
-           "edge_valence", "face_components", "bbox_diagonal"]
+__all__ = ["MeshStats", "mesh_stats", "decimate", "decimation_shortfall", "weld", "repair",
+           "clean", "edge_valence", "face_components", "bbox_diagonal"]
 
 
 # --------------------------------------------------------------------------- helpers
@@ -76,8 +76,13 @@ def edge_valence(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     e = e[e[:, 0] != e[:, 1]]
     if e.size == 0:
         return np.zeros((0, 2), np.int64), np.zeros(0, np.int64)
-    edges, counts = np.unique(e, axis=0, return_counts=True)
-    return edges, counts
+    if e.min() < 0:
+        edges, counts = np.unique(e, axis=0, return_counts=True)
+        return edges, counts
+    # one int64 key per edge (same lexicographic order): a 1-D unique, ~20x faster than rows
+    span = int(e.max()) + 1
+    keys, counts = np.unique(e[:, 0] * span + e[:, 1], return_counts=True)
+    return np.stack([keys // span, keys % span], axis=1), counts
 
 
 def face_components(faces: np.ndarray, vertex_count: int) -> tuple[int, np.ndarray]:
@@ -343,7 +348,8 @@ def decimate(mesh: TriangleMesh, target_faces: int, *, preserve_boundary: bool =
     (:func:`weld`) are borders the collapse must preserve. Very strong reductions of thin or
     non-manifold meshes fold faces over (a 9.3k-face TRELLIS mesh keeps its area and stays
     within 0.3 % of its diagonal on average down to 2k faces, but not at 1k); compare
-    :func:`mesh_stats` ``area`` before and after when in doubt.
+    :func:`mesh_stats` ``area`` before and after when in doubt. :func:`decimation_shortfall`
+    says in one line why a result stayed above the target.
     """
     _check(mesh, "decimate")
     try:
@@ -379,3 +385,31 @@ def decimate(mesh: TriangleMesh, target_faces: int, *, preserve_boundary: bool =
     if len(faces) == 0:
         raise FormatError("decimation removed every face of the mesh")
     return clean(TriangleMesh(vertices, faces))
+
+
+#: :func:`decimation_shortfall` speaks up when decimation ends above this multiple of the
+#: target (the collapse aims at *about* the target: a few faces more are normal).
+SHORTFALL_RATIO = 1.05
+
+
+def decimation_shortfall(result: TriangleMesh, target_faces: int) -> str | None:
+    """Why :func:`decimate` stopped above ``target_faces`` (``result`` is what it returned),
+    in one line naming the constraints that held it (from :func:`mesh_stats` of the result),
+    or ``None`` when it reached about the target."""
+    if result.face_count <= SHORTFALL_RATIO * target_faces:
+        return None
+    stats = mesh_stats(result)
+    held = []
+    if stats.boundary_edges:
+        held.append(f"its open borders keep their outline ({stats.boundary_edges} boundary "
+                    "edges)")
+    if stats.nonmanifold_edges or stats.components > 1:
+        parts = [f"{stats.components} separate parts"] if stats.components > 1 else []
+        if stats.nonmanifold_edges:
+            parts.append(f"{stats.nonmanifold_edges} non-manifold edges")
+        held.append(f"its topology is kept ({', '.join(parts)})")
+    held.append("no collapse may flip a face or make a sliver")
+    return (f"--faces {target_faces}: the anchor mesh has {result.face_count} faces, the "
+            f"fewest the decimation reaches without breaking the mesh: "
+            f"{'; '.join(held)}")
+

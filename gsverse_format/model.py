@@ -15,6 +15,8 @@ Covariance of splat i is ``R_i diag(scales_i)² R_iᵀ``.
 from __future__ import annotations
 
 import json
+import math
+import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal, Union
 
@@ -62,6 +64,33 @@ def sh_degree_for_count(count: int) -> int:
         if (degree + 1) ** 2 == count:
             return degree
     raise ValueError(f"{count} SH coefficients per channel is not (d+1)^2 for d in 0..3")
+
+
+def _rows(array: np.ndarray, index) -> np.ndarray:
+    """``array[index]`` along the first axis: ``np.take`` for an integer index array (the same
+    values, without fancy indexing's per-element overhead: 2-3 times faster on (N, K, 3) SH),
+    fancy indexing for anything else (boolean masks, slices)."""
+    if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and index.ndim == 1:
+        return np.take(array, index, axis=0)
+    return array[index]
+
+
+#: :meth:`SplatCloud.permute` reorders the SH coefficients in place in this many blocks of
+#: columns, so that its temporary is a third of the SH array instead of a full copy; measured
+#: (1M splats, SH degree 3, 192 MB): 0.22 s against 0.08 s for a copy, 2 or 4 blocks 0.16 s
+#: or 0.27 s (a block is one random gather over all rows).
+PERMUTE_BLOCKS = 3
+
+
+def _permute_rows_in_place(array: np.ndarray, order: np.ndarray) -> None:
+    """``array[:] = array[order]`` (C-contiguous ``array``), :data:`PERMUTE_BLOCKS` blocks of
+    columns at a time when its row divides into that many (each block gathered as one opaque
+    item of its bytes), else whole rows."""
+    flat = array.reshape(array.shape[0], -1)
+    blocks = math.gcd(flat.shape[1], PERMUTE_BLOCKS)
+    items = flat.view(np.dtype((np.void, flat.itemsize * flat.shape[1] // blocks)))
+    for b in range(blocks):
+        items[:, b] = items[order, b]
 
 
 def _as(array, dtype, shape_tail: tuple, name: str, n: int | None = None) -> np.ndarray:
@@ -121,9 +150,40 @@ class SplatCloud:
 
     def subset(self, index) -> "SplatCloud":
         """Splats selected by an index array or boolean mask (copies)."""
-        return SplatCloud(self.means[index], self.rotations[index], self.scales[index],
-                          self.opacities[index], self.sh[index], self.color_space,
-                          {k: v[index] for k, v in self.extra.items()})
+        return SplatCloud(_rows(self.means, index), _rows(self.rotations, index),
+                          _rows(self.scales, index), _rows(self.opacities, index),
+                          _rows(self.sh, index), self.color_space,
+                          {k: _rows(v, index) for k, v in self.extra.items()})
+
+    def permute(self, order: np.ndarray) -> None:
+        """Reorder the splats in place: row ``i`` becomes row ``order[i]`` (``order`` a
+        permutation of ``0..N-1``; ``ValueError`` otherwise), as ``subset(order)`` would, without
+        a second copy of the cloud alive. Each small array is replaced by its reordered copy in
+        turn (arrays this cloud shares with others stay as they are); the SH coefficients, most
+        of the memory, are reordered in their own array a block of columns at a time when this
+        cloud owns that array, it is writeable and nothing else refers to it (else replaced
+        like the others)."""
+        order = np.asarray(order)
+        n = len(self)
+        if (order.shape != (n,) or order.dtype.kind not in "iu"
+                or (n and (order.min() < 0 or order.max() >= n
+                           or not np.all(np.bincount(order, minlength=n) == 1)))):
+            raise ValueError(f"order must be a permutation of the {n} splats")
+        if n == 0:
+            return
+        self.means = np.take(self.means, order, axis=0)
+        self.rotations = np.take(self.rotations, order, axis=0)
+        self.scales = np.take(self.scales, order, axis=0)
+        self.opacities = np.take(self.opacities, order, axis=0)
+        self.extra = {k: np.take(v, order, axis=0) for k, v in self.extra.items()}
+        # in place only into an array no one else sees: owned, writeable, and referenced by
+        # this cloud alone (another cloud or a view of it would hold a second reference;
+        # getrefcount's own argument is the other one counted here)
+        if (sys.getrefcount(self.sh) <= 2 and self.sh.flags.owndata
+                and self.sh.flags.writeable and self.sh.flags.c_contiguous):
+            _permute_rows_in_place(self.sh, order)
+        else:
+            self.sh = np.take(self.sh, order, axis=0)
 
     def with_sh_degree(self, degree: int) -> "SplatCloud":
         """A copy truncated (or zero-padded) to SH ``degree``."""
@@ -224,8 +284,9 @@ class LocalAnchors:
         return int(self.face_index.shape[0])
 
     def subset(self, index) -> "LocalAnchors":
-        return LocalAnchors(self.face_index[index], self.barycentrics[index], self.normal_offset[index],
-                            self.local_rotation[index], self.local_scale[index], self.deformation)
+        return LocalAnchors(_rows(self.face_index, index), _rows(self.barycentrics, index),
+                            _rows(self.normal_offset, index), _rows(self.local_rotation, index),
+                            _rows(self.local_scale, index), self.deformation)
 
 
 @dataclass
@@ -252,7 +313,8 @@ class GamesAnchors:
         return int(self.face_index.shape[0])
 
     def subset(self, index) -> "GamesAnchors":
-        return GamesAnchors(self.face_index[index], self.barycentrics[index], self.rho[index])
+        return GamesAnchors(_rows(self.face_index, index), _rows(self.barycentrics, index),
+                            _rows(self.rho, index))
 
 
 Anchors = Union[LocalAnchors, GamesAnchors]

@@ -14,7 +14,8 @@ Two implementations give identical results, bit for bit:
   point on all cores), with its kernel in :mod:`gsverse_format.nearest_compiled_kernel`.
 
 This module only chooses between them (``method``, resolved by :mod:`gsverse_format.backend`:
-``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference).
+``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference; under ``"auto"``
+small jobs run the reference, see :data:`gsverse_format.backend.NEAREST_NUMPY_BELOW`).
 """
 from __future__ import annotations
 
@@ -22,7 +23,9 @@ from typing import Callable
 
 from numpy.typing import ArrayLike
 
-from .backend import resolve_backend
+import numpy as np
+
+from .backend import NEAREST_NUMPY_BELOW, resolve_backend
 from .nearest_reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
 
 __all__ = ["NearestResult", "nearest_triangles", "closest_points_on_triangles"]
@@ -43,12 +46,17 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     ``method`` picks the implementation; both return identical results. ``"numba"`` is the
     compiled, multi-threaded search of :mod:`gsverse_format.nearest_compiled`, ``"numpy"`` the
     vectorised reference of :mod:`gsverse_format.nearest_reference`, and ``"auto"`` (default)
-    the process-wide choice of :mod:`gsverse_format.backend` (numba when it can be imported,
-    unless ``GSVERSE_BACKEND`` or :func:`~gsverse_format.backend.set_backend` says otherwise).
+    the process-wide choice of :mod:`gsverse_format.backend`: numba when it can be imported,
+    unless ``GSVERSE_BACKEND`` or :func:`~gsverse_format.backend.set_backend` says otherwise,
+    and numpy for jobs of fewer than
+    :data:`~gsverse_format.backend.NEAREST_NUMPY_BELOW` points + faces (there the reference
+    answers faster than numba can be imported, let alone compile its kernels).
     ``"numba"`` without numba raises :class:`~gsverse_format.backend.BackendUnavailableError`
     (an ``ImportError``).
     """
-    if resolve_backend(method, argument="method") == "numba":
+    size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
+    if resolve_backend(method, argument="method", size=size,
+                       numpy_below=NEAREST_NUMPY_BELOW) == "numba":
         from .nearest_compiled import nearest_triangles_numba
 
         return nearest_triangles_numba(points, vertices, faces, exclude=exclude, chunk=chunk,

@@ -48,9 +48,12 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike
 
+from .backend import configure_numba
 from .nearest_compiled_kernel import (RECORD_WIDTH, closest_point, f32_down, f32_up, face_record,
                                       fetch_add, max3, min3)
 from .nearest_reference import MARGIN, NearestResult, prepare_query
+
+configure_numba()
 
 __all__ = ["Tree", "nearest_triangles_numba", "build_tree", "query_tree", "warm_up"]
 

@@ -29,7 +29,10 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from .backend import configure_numba
 from .nearest_reference import DEGENERATE_RATIO
+
+configure_numba()
 
 __all__ = ["RECORD_WIDTH", "fetch_add", "min3", "max3", "f32_down", "f32_up", "closest_point",
            "face_record", "face_records"]

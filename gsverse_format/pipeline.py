@@ -34,22 +34,24 @@ from typing import Any
 
 import numpy as np
 
-from .binding import bind_local
-from .converters import detect_source, get_source
-from .converters.base import SourceOptions, SourceResult, TrellisFrame, require_splats
-from .converters.reconstruct import reconstruct_mesh
+from typing import TYPE_CHECKING
+
 from .errors import FormatError, GsverseError, UsageError
-from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, suffixes,
-                          write_asset)
+from .atomic import check_target
+from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, rotate_asset,
+                          suffixes, write_asset)
 from .model import (Anchoring, DeformationLaw, KhrProperties, LocalAnchors, SplatAsset,
-                    SplatCloud, SplatPrimitive, TriangleMesh, prim_label, splat_problem)
-from .nearest import closest_points_on_triangles
+                    SplatCloud, SplatPrimitive, prim_label, splat_problem)
 from .progress import Progress
-from .scene import (anchor_scene, finish_physics, input_stem, prepare_mesh,
-                    read_scene_meshes, with_static_rest)
 from .transform import rotate_mesh, rotate_splats
 
-__all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "to_gltf"]
+if TYPE_CHECKING:
+    from .converters.base import SourceOptions, SourceResult, TrellisFrame
+
+# The sources, binding, nearest-triangle search and scene modules are imported where they are
+# used: a format-only conversion (``plain``) never loads them.
+
+__all__ = ["ConvertOptions", "ConvertSummary", "convert", "load_source", "read_input", "to_gltf"]
 
 #: Formats whose files can hold anchoring (kept by a format-only conversion).
 _ANCHORING_FORMATS = ("gltf", "usd")
@@ -74,7 +76,12 @@ class ConvertOptions:
     USD time samples (USD output only). ``meshes``, two or more, makes a scene of several
     objects (:mod:`gsverse_format.scene`; ``max_distance`` is then relative to each object's
     mesh); ``watertight`` makes each anchor mesh a closed 2-manifold before binding;
-    ``collider`` (``"hull"``) adds a collision mesh per anchor mesh.
+    ``collider`` (``"hull"``) adds a collision mesh per anchor mesh. ``anchors`` is how glTF
+    output stores the anchors (``"explicit"``, the version 1.1 layout, or ``"compact"``:
+    ``faceCounts`` and derived ``local`` anchors, extension 1.2); ``quantize`` (16 or 8) stores
+    what glTF output can quantize as normalized integers of that many bits
+    (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`). An anchor mesh that does not fit
+    its splats (:func:`gsverse_format.scene.judge_fit`) is a warning, an error with ``strict``.
     """
 
     mesh: str | None = None
@@ -96,6 +103,9 @@ class ConvertOptions:
     meshes: list[str] | None = None
     watertight: bool = False
     collider: str | None = None
+    anchors: str = "explicit"
+    quantize: int | None = None
+    strict: bool = False
 
 
 @dataclass
@@ -120,21 +130,28 @@ class ConvertSummary:
     notes: list[str] = field(default_factory=list)
     objects: list[dict[str, Any]] = field(default_factory=list)
     anchor_meshes: list[dict[str, Any]] = field(default_factory=list)
+    fit: list[dict[str, Any]] = field(default_factory=list)
     output_bytes: int = 0
     seconds: float = 0.0
+    #: The splats were bound, but the output format (PLY) holds plain splats only.
+    plain_output: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     def lines(self) -> list[str]:
+        written = ("written as plain splats (anchoring not written to PLY)"
+                   if self.plain_output else
+                   f"written: anchored {self.anchored}, static {self.static}")
         out = [f"{self.input} -> {self.output}  (source: {self.source})",
-               f"  splats     {self.splats} written: anchored {self.anchored}, static "
-               f"{self.static}; "
-               f"dropped {self.dropped}; SH degree {self.sh_degree}"]
+               f"  splats     {self.splats} {written}; dropped {self.dropped}; "
+               f"SH degree {self.sh_degree}"]
         if self.profile:
             law = f", deformation {self.deformation}" if self.deformation else ""
-            out.append(f"  anchoring  profile {self.profile}{law}, {self.mesh_faces} faces "
-                       f"({self.degenerate_faces} degenerate, never bound)")
+            out.append(f"  {'binding    ' if self.plain_output else 'anchoring  '}profile "
+                       f"{self.profile}{law}, {self.mesh_faces} faces "
+                       f"({self.degenerate_faces} degenerate, never bound)"
+                       + ("; not written" if self.plain_output else ""))
         if self.distance:
             d = self.distance
             out.append(f"  distance   to mesh p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, p99 {d['p99']:.3g}, "
@@ -163,14 +180,6 @@ class ConvertSummary:
         return out
 
 
-def _distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:
-    if distance.size == 0:
-        return {}
-    p50, p95, p99 = np.percentile(distance, [50, 95, 99])
-    return {"p50": float(p50), "p95": float(p95), "p99": float(p99),
-            "max": float(distance.max()), "mesh_diagonal": float(diagonal)}
-
-
 def _check_options(input_path: str, output_path: str, options: ConvertOptions) -> None:
     if options.deformation not in ("affine", "rigid"):
         raise UsageError(f"--deformation must be affine or rigid, not {options.deformation!r}")
@@ -194,13 +203,38 @@ def _check_options(input_path: str, output_path: str, options: ConvertOptions) -
     for p in (options.mesh, options.pt_path, options.bake_poses, *(options.meshes or ())):
         if p is not None and not os.path.isfile(p):
             raise UsageError("file not found", p)
-    folder = os.path.dirname(os.path.abspath(output_path))
-    if not os.path.isdir(folder):
-        raise UsageError(f"output folder {folder!r} does not exist", output_path)
+    check_target(output_path)  # a folder, a path through a file, a missing folder
     out_format = find_format(output_path, "write")
     if options.bake_poses is not None and out_format.name != "usd":
         raise UsageError(f"--bake-poses needs a USD output ({', '.join(suffixes('write', 'usd'))})",
                          output_path)
+    _check_encoding_options(output_path, options, out_format.name)
+    in_format = FORMATS.get(os.path.splitext(input_path)[1].lower())
+    if "usd" in (out_format.name, in_format.name if in_format is not None else None):
+        from .io.usd.schema import import_pxr
+
+        try:   # a missing usd-core is said before any work, not after it
+            import_pxr()
+        except UsageError as exc:
+            raise exc.with_path(output_path if out_format.name == "usd" else input_path) \
+                from None
+
+
+def _check_encoding_options(output_path: str, options: ConvertOptions, out_format: str) -> None:
+    """``--anchors`` and ``--quantize``: glTF output only; compact anchors group the splats by
+    face, which ``--keep-order`` forbids."""
+    if options.anchors not in ("explicit", "compact"):
+        raise UsageError(f"--anchors must be explicit or compact, not {options.anchors!r}")
+    if options.quantize is not None and options.quantize not in (16, 8):
+        raise UsageError(f"--quantize must be 16 or 8, not {options.quantize}")
+    changed = [flag for flag, on in (("--anchors compact", options.anchors == "compact"),
+                                     ("--quantize", options.quantize is not None)) if on]
+    if changed and out_format != "gltf":
+        raise UsageError(f"{' and '.join(changed)} {'apply' if len(changed) > 1 else 'applies'} "
+                         f"to glTF output (.glb, .gltf) only", output_path)
+    if options.anchors == "compact" and options.keep_order:
+        raise UsageError("--anchors compact stores the splats grouped by face: drop --keep-order "
+                         "or --anchors compact")
 
 
 def _format_only(input_path: str, output_path: str, options: ConvertOptions) -> bool:
@@ -249,6 +283,8 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                               input_path)
         for i, prim in enumerate(asset.primitives):
             _require_valid_splats(prim.splats, input_path, prim_label(i, prim))
+        from .converters.khr import require_valid_primitives
+        require_valid_primitives(asset, input_path)  # anchors too: the input's problem
         _require_writable_khr([(prim_label(i, p), p.khr) for i, p in enumerate(asset.primitives)],
                               input_path, output_path)
         if options.sh_degree is not None:
@@ -260,8 +296,12 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                                 for p in asset.primitives], asset.generator)
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
+    from .scene import anchor_scene, finish_physics, read_scene_meshes
+
     source = options.source
     if source == "auto":
+        from .converters import detect_source
+
         source, reason = detect_source(input_path, options.mesh)
         summary.notes.append(f"detected source {source}: {reason}")
     summary.source = source
@@ -277,9 +317,12 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     else:
         result = load_source(source, input_path, options.mesh, src_options,
                              frame_change=options.frame_change,
-                             reconstruct_faces=reconstruct_faces)
+                             reconstruct_faces=reconstruct_faces, progress=progress)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
+    if result.inputs:  # the files a source folder's loader read, in place of the whole folder
+        protect = (*(p for p in protect if p != input_path or not os.path.isdir(p)),
+                   *result.inputs)
     _require_writable_khr([("the splats", result.khr)], input_path, output_path)
     if options.meshes:
         if result.mesh is None:
@@ -289,12 +332,15 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                              summary)
     else:
         asset = _anchor(result, options, progress, summary)
+    del result   # the source's splats: the asset holds its own (sorted) copies
     finish_physics(asset, options, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
 
 def _source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions, list[str]]:
     """What the loaders get from the command line, and notes on flags that do not apply."""
+    from .converters.base import SourceOptions
+
     notes: list[str] = []
     trellis_frame: TrellisFrame = "legacy" if options.legacy_trellis_frame else "current"
     if not options.frame_change:
@@ -306,12 +352,17 @@ def _source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions
 
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
                 options: SourceOptions | None = None, *, frame_change: bool = True,
-                reconstruct_faces: int | None = None) -> SourceResult:
+                reconstruct_faces: int | None = None,
+                progress: Progress | None = None) -> SourceResult:
     """Load ``source``'s output (steps 3–5 of :func:`convert`): the loader's result rotated
     into the glTF frame (unless ``frame_change`` is off), with an anchor mesh of about
     ``reconstruct_faces`` faces reconstructed from the splats when the source has none.
     (TRELLIS's PLY-to-GLB frame is ``options.trellis_frame``; :func:`convert` sets it to
-    ``"none"`` with ``frame_change`` off.)"""
+    ``"none"`` with ``frame_change`` off.) ``progress`` shows each step as it starts."""
+    from .converters import get_source
+    from .converters.base import SourceOptions, require_splats
+    from .converters.reconstruct import reconstruct_mesh
+
     path = os.fspath(input_path)
     result = get_source(source).load(path, mesh_path, options or SourceOptions())
     require_splats(result.splats, path, f"the {source} input holds none")
@@ -319,7 +370,8 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     if frame_change:
         result = to_gltf(result)
     if result.mesh is None:
-        result = reconstruct_mesh(result, reconstruct_faces, path)
+        result = reconstruct_mesh(result, reconstruct_faces, path,
+                                  stage=progress.stage if progress is not None else None)
     return result
 
 
@@ -371,12 +423,29 @@ def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UsdReadWarning)
-        asset = read_asset(input_path, frame_change=options.frame_change)
+        asset = read_input(input_path, frame_change=options.frame_change)
     for w in caught:
         if issubclass(w.category, UsdReadWarning):
             summary.notes.append(str(w.message))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return asset
+
+
+def read_input(path: str | os.PathLike[str], *, frame_change: bool = True) -> SplatAsset:
+    """:func:`~gsverse_format.io.registry.read_asset` for files from anywhere: a USD file is
+    parsed in a child process (:func:`gsverse_format.io.usd.read_usd` with ``isolate``), so
+    that a file that crashes the USD library (a stack overflow on deeply nested prims, an
+    abort on corrupt ``.usdc`` data) is a :class:`FormatError` naming it, not the end of this
+    process."""
+    fmt = find_format(path, "read")
+    if fmt.name != "usd":
+        return read_asset(path, frame_change=frame_change)
+    from .io.usd import read_usd
+
+    asset = read_usd(path, isolate=True)
+    if frame_change and fmt.frame != "gltf":
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
     return asset
 
 
@@ -398,7 +467,10 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
     if kept:
         summary.notes.append(f"kept the input's KHR_gaussian_splatting {', '.join(kept)}")
     if find_format(output_path, "write").name == "ply" and asset.anchored:
-        summary.notes.append("PLY output stores plain splats: the anchoring is not written")
+        # PLY holds plain splats: what the summary counts is what the file holds
+        summary.plain_output = True
+        summary.static += summary.anchored
+        summary.anchored = 0
     poses = None
     if options.bake_poses is not None:
         from .io.usd import load_poses
@@ -406,9 +478,16 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
         poses = load_poses(options.bake_poses)
         _require_poses_fit(asset, poses, options.bake_poses, summary.input)
         summary.notes.append(f"baked {len(poses.times)} anchor-mesh poses into USD time samples")
+    encoding: dict[str, Any] = {}
+    if find_format(output_path, "write").name == "gltf":
+        from .io.gltf.writer import QUANTIZE_BITS, quantize_notes
+
+        quantize = QUANTIZE_BITS[options.quantize] if options.quantize is not None else None
+        encoding = {"quantize": quantize, "anchors": options.anchors}
+        summary.notes.extend(quantize_notes(asset, quantize, options.anchors))
     progress.stage(f"writing {os.path.basename(output_path)}")
     write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
-                bake_poses=poses)
+                bake_poses=poses, **encoding)
     progress.close()
     summary.output_bytes = os.path.getsize(output_path)
     summary.seconds = time.perf_counter() - start
@@ -432,34 +511,34 @@ def _require_poses_fit(asset: SplatAsset, poses: Any, poses_path: str, input_pat
                           f"mesh, in its order (without --faces decimation)", poses_path)
 
 
-def _face_distances(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray) -> np.ndarray:
-    tri = mesh.triangles()[face_index.astype(np.intp)]
-    _, _, dist = closest_points_on_triangles(splats.means.astype(np.float64), tri[:, 0],
-                                             tri[:, 1], tri[:, 2])
-    return dist
-
-
 def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
             summary: ConvertSummary) -> SplatAsset:
     """Step 6: SH, decimation, binding, what the scene requires, order."""
+    from .binding import bind_local
+    from .scene import (distance_stats, face_distances, input_stem, judge_fit, object_name,
+                        prepare_mesh, with_static_rest)
+
     splats, mesh, anchors = result.splats, result.mesh, result.anchors
     assert mesh is not None  # load_source reconstructs a missing mesh
     if options.sh_degree is not None and splats.sh_degree > options.sh_degree:
         splats = splats.with_sh_degree(options.sh_degree)
     rigged = mesh.rig is not None
     if options.faces is not None and mesh.face_count > options.faces:
-        from .meshops import decimate
+        from .meshops import decimate, decimation_shortfall
 
         progress.stage(f"decimating {mesh.face_count} -> {options.faces} faces")
         try:
             mesh = decimate(mesh, options.faces)
         except FormatError as exc:   # the mesh's fault: name the file it came from
             raise exc.with_path(options.mesh or summary.input) from None
+        shortfall = decimation_shortfall(mesh, options.faces)
+        if shortfall is not None:
+            summary.notes.append(shortfall)
         if anchors is not None:
             summary.notes.append("--faces: the source's exact binding was replaced by nearest-"
                                  "triangle binding to the decimated mesh (local profile)")
             anchors = None
-    repaired = prepare_mesh(mesh, options, summary, options.mesh or summary.input)
+    repaired = prepare_mesh(mesh, options, summary, options.mesh or summary.input, progress)
     if repaired is not mesh:
         mesh = repaired
     if rigged and mesh.rig is None:
@@ -480,11 +559,13 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     else:
         if isinstance(anchors, LocalAnchors) and anchors.deformation != options.deformation:
             anchors = replace(anchors, deformation=options.deformation)
-        distance = _face_distances(splats, mesh, anchors.face_index)
+        distance = face_distances(splats, mesh, anchors.face_index)
 
     lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
     diagonal = float(np.linalg.norm(hi.astype(np.float64) - lo))
-    summary.distance = _distance_stats(distance, diagonal)
+    summary.distance = distance_stats(distance, diagonal)
+    judge_fit(splats.means, mesh, distance, "the anchor mesh" if options.mesh is None
+              else object_name(options.mesh), options.mesh or summary.input, options, summary)
     summary.mesh_faces = mesh.face_count
     summary.profile = anchors.profile
     summary.deformation = getattr(anchors, "deformation", None)
@@ -501,8 +582,15 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         keep_idx = np.flatnonzero(keep)
     primitives = []
     if keep_idx.size:
-        primitives.append(SplatPrimitive(splats.subset(keep_idx),
-                                         Anchoring(mesh, anchors.subset(keep_idx)),
+        if keep_idx.size == len(splats):
+            # all kept: the source's splats are reordered in place (no second copy of them;
+            # nothing reads them in the old order after this) or, kept in order, used as is
+            if not options.keep_order:
+                splats.permute(keep_idx)
+            kept, kept_anchors = splats, anchors.subset(keep_idx)
+        else:
+            kept, kept_anchors = splats.subset(keep_idx), anchors.subset(keep_idx)
+        primitives.append(SplatPrimitive(kept, Anchoring(mesh, kept_anchors),
                                          input_stem(summary), result.khr))
     return with_static_rest(primitives, result, np.flatnonzero(~keep), options, summary,
                             f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}",

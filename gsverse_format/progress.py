@@ -14,6 +14,8 @@ class Progress:
 
     def __init__(self, enabled: bool | None = None, stream: TextIO | None = None, width: int = 30):
         self.stream = stream or sys.stderr
+        if self.stream is None:  # standard error closed (2>&-): nothing to draw on
+            enabled = False
         self.enabled = (self.stream.isatty() if enabled is None else enabled)
         self.width = width
         self._last = 0.0

@@ -10,9 +10,12 @@ rest doubled area, regular flag; computed in float64 from the stored float32 res
 :func:`gsverse_format.remap_reference.prepare_rest`, as spec §Precision requires, and kept in float64)
 and per-splat constants. For the ``local`` profile the splat-side constant is the 3×3 matrix
 ``L = R_l S_l`` (rotation matrix of the local quaternion times its scales), so that no
-quaternion or ``exp`` work is left per frame. **Per frame** (:meth:`FastRemapper.remap`): a
-pass over the faces, then a streaming pass over the splats (see
-:mod:`gsverse_format.remap_compiled`).
+quaternion or ``exp`` work is left per frame. **Per frame** (:meth:`FastRemapper.remap`): for
+splats grouped by face (as files store them), one parallel region over chunks of consecutive
+splats handed out dynamically; each chunk computes the faces of its runs, then streams its
+splats (:mod:`gsverse_format.remap_compiled_runs`; faces without splats are never computed).
+Otherwise a pass over all faces, then a streaming pass over the splats
+(:mod:`gsverse_format.remap_compiled`). Both give the same bits for every splat.
 
 Outputs (:class:`RemapOutput`) are float32: means (N, 3) and the 6 unique covariance entries
 (N, 6) in the order ``xx, xy, xz, yy, yz, zz`` (:data:`COV6_ORDER`). Covariance is the normative
@@ -22,14 +25,24 @@ GaMeS scales). The ``affine`` law has no cheap rotation/scale pair (the referenc
 per splat); use the reference remap when one is needed.
 
 Splats are processed in the order given. Files store them sorted by face (spec §Ordering), which
-keeps the per-face table in cache; random order costs several times more at 100k faces. (A
-variant fusing the face and splat passes into one pass over runs of splats sharing a face was
-measured and was no faster.)
+keeps the per-face data in cache; random order costs several times more at 100k faces.
+
+Threads: numba's thread count (``numba.set_num_threads``) at each call. The work is handed out
+in chunks from a shared counter: when another process keeps a thread off its core, the other
+threads take the remaining chunks and the frame waits only for the chunk that thread holds
+(once it runs again), not for its share of the work; the one-pass path also has one parallel
+region (one join) per frame instead of two. Measured on 1 thread (CPU time, 100k-face grid of
+``benchmarks/remap.py``): 100k splats 3.1 ms against 4.1 ms for the two passes (37% of the
+faces carry no splat); 1M splats 14.6 ms against 13.7 ms (every face used; the alternation of
+face and splat work per chunk costs about 7%). Per splat the remap is bound by scalar FMA
+throughput (≈ 54 multiply-adds, ≈ 11 ns a splat on a 2.2 GHz EPYC), not by memory.
 
 Selection: :func:`remap_auto` and ``FastRemapper(backend="auto")`` follow
 :mod:`gsverse_format.backend`: numba when it can be imported, otherwise the numpy reference
 (whose float64 result is then stored in the same float32 output buffers);
-``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference.
+``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference. A one-shot
+:func:`remap_auto` of fewer than :data:`~gsverse_format.backend.REMAP_NUMPY_BELOW` splats runs
+the reference under ``"auto"``.
 """
 from __future__ import annotations
 
@@ -38,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import quaternion as quat
-from .backend import numba_available, resolve_backend
+from .backend import REMAP_NUMPY_BELOW, numba_available, resolve_backend
 from .model import Anchoring, GamesAnchors
 from .remap_reference import RestData, prepare_rest, remap as reference_remap
 from .vocabulary import COV6_INDEX, COV6_ORDER
@@ -48,6 +61,13 @@ __all__ = ["COV6_ORDER", "RemapOutput", "FastRemapper", "remap_auto", "numba_ava
 
 _EMPTY4 = np.zeros((0, 4), np.float32)
 _EMPTY3 = np.zeros((0, 3), np.float32)
+
+
+def _threads() -> int:
+    """numba's current thread count (``numba.set_num_threads``), the workers a kernel starts."""
+    import numba
+
+    return int(numba.get_num_threads())
 
 
 def cov6_to_matrix(cov6: np.ndarray) -> np.ndarray:
@@ -103,10 +123,12 @@ class FastRemapper:
     ``"numpy"`` or ``"auto"``: the process-wide choice of :mod:`gsverse_format.backend` (numba
     when importable, unless ``GSVERSE_BACKEND`` or ``set_backend`` says otherwise). ``"numba"``
     without numba raises :class:`~gsverse_format.backend.BackendUnavailableError`.
+    ``one_pass=False`` keeps the compiled path on its two passes even for splats grouped by
+    face (same results; for comparing the two, see :attr:`one_pass`).
     """
 
     def __init__(self, anchoring: Anchoring, *, rotations: bool = False,
-                 backend: str = "auto") -> None:
+                 backend: str = "auto", one_pass: bool = True) -> None:
         self.anchoring = anchoring
         self.backend = resolve_backend(backend)
         anchors = anchoring.anchors
@@ -123,12 +145,19 @@ class FastRemapper:
             if self.profile == "local":
                 self._rest = prepare_rest(mesh.triangles())
             return
-        from . import remap_compiled
+        from . import remap_compiled, remap_compiled_runs
 
         self._kernels = remap_compiled
+        self._runs_kernels = remap_compiled_runs
         self._faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._face = np.ascontiguousarray(anchors.face_index, dtype=np.int32)
-        self._table = np.zeros((self.n_faces, remap_compiled.TABLE_WIDTH), np.float32)
+        # One pass over runs of splats sharing a face when the splats are grouped by face
+        # (files sort them so); otherwise a face pass into a table, then a splat pass.
+        self._plan = (remap_compiled_runs.plan_runs(self._face, self.n_faces) if one_pass
+                      else None)
+        rows = self.n_faces if self._plan is None else self._plan.runs
+        self._table = np.zeros((rows, remap_compiled.TABLE_WIDTH), np.float32)
+        self._qlocal, self._slocal, self._qface = _EMPTY4, _EMPTY3, _EMPTY4
         if isinstance(anchors, GamesAnchors):
             self._consts = np.ascontiguousarray(np.concatenate(
                 [anchors.barycentrics, anchors.rho[:, None]], axis=1), dtype=np.float32)
@@ -147,7 +176,7 @@ class FastRemapper:
         self._consts = np.ascontiguousarray(np.concatenate(
             [anchors.barycentrics, anchors.normal_offset[:, None], lmat.reshape(-1, 9)],
             axis=1), dtype=np.float32)
-        self._qface = np.zeros((self.n_faces if self.rotations else 0, 4), np.float32)
+        self._qface = np.zeros((rows if self.rotations else 0, 4), np.float32)
         if self.rotations:
             self._qlocal = np.ascontiguousarray(q_l, dtype=np.float32)
             self._slocal = np.ascontiguousarray(anchors.local_scale, dtype=np.float32)
@@ -162,8 +191,17 @@ class FastRemapper:
         return RemapOutput(np.zeros((n, 3), np.float32), np.zeros((n, 6), np.float32), rot, sca)
 
     @property
+    def one_pass(self) -> bool:
+        """True when the compiled path remaps in one pass over runs of splats sharing a face
+        (:mod:`gsverse_format.remap_compiled_runs`; splats grouped by face, as files store
+        them), False for the face pass + splat pass of :mod:`gsverse_format.remap_compiled`."""
+        return self.backend == "numba" and self._plan is not None
+
+    @property
     def bytes_per_splat(self) -> int:
-        """Bytes the per-splat pass must read and write per splat (streamed data only)."""
+        """Bytes the compiled remap must stream per splat: the face (two passes) or run (one
+        pass) index and the per-splat constants read, the outputs written. Per-face data stay
+        in cache and are not counted."""
         if self.profile == "games":
             read, write = 4 + 12, 12 + 24
             if self.rotations:
@@ -171,7 +209,7 @@ class FastRemapper:
         else:
             read, write = 4 + 48, 12 + 24
             if self.rotations:
-                read += 4 + 16 + 12          # face index again, q_l, s_l
+                read += 16 + 12              # q_l, s_l
                 write += 16 + 12
         return read + write
 
@@ -189,31 +227,42 @@ class FastRemapper:
         out = self._out if out is None else out
         if self.backend == "numpy":
             return self._remap_numpy(v, out)
+        workers = _threads()
+        rotations, scales = ((out.rotations, out.scales) if self.rotations
+                             else (_EMPTY4, _EMPTY3))
+        plan = self._plan
+        if plan is not None:
+            r = self._runs_kernels
+            if self.profile == "games":
+                r.games_runs(v, self._faces, plan.face, plan.run_of, plan.chunk, self._consts,
+                             self._table, out.means, out.cov6, rotations, scales, plan.size,
+                             workers)
+            else:
+                r.local_runs(v, self._faces, self._rest_table, self.law == "rigid", plan.face,
+                             plan.run_of, plan.chunk, self._consts, self._table, self._qface,
+                             out.means, out.cov6, self._qlocal, self._slocal, rotations, scales,
+                             plan.size, workers)
+            return out
+        self.face_pass(v)
         k = self._kernels
         if self.profile == "games":
-            k.games_faces(v, self._faces, self._table)
-            rotations, scales = ((out.rotations, out.scales) if self.rotations
-                                 else (_EMPTY4, _EMPTY3))
             k.games_splats(self._face, self._consts, self._table, out.means, out.cov6,
-                           rotations, scales)
-            return out
-        k.local_faces(v, self._faces, self._rest_table, self.law == "rigid", self._table,
-                      self._qface)
-        k.local_splats(self._face, self._consts, self._table, out.means, out.cov6)
-        if self.rotations:
-            k.rigid_pairs(self._face, self._qlocal, self._slocal, self._table, self._qface,
-                          out.rotations, out.scales)
+                           rotations, scales, workers)
+        else:
+            k.local_splats(self._face, self._consts, self._table, out.means, out.cov6,
+                           self._qlocal, self._slocal, self._qface, rotations, scales, workers)
         return out
 
     def face_pass(self, vertices: np.ndarray) -> None:
-        """Only the per-face pass (for timing its share)."""
-        if self.backend == "numpy":
-            raise RuntimeError("the numpy backend has no separate face pass")
+        """Only the per-face pass of the two-pass path (for timing its share; the one-pass
+        path has no separate face pass)."""
+        if self.backend == "numpy" or self._plan is not None:
+            raise RuntimeError("only the two-pass compiled path has a separate face pass")
         if self.profile == "games":
-            self._kernels.games_faces(vertices, self._faces, self._table)
+            self._kernels.games_faces(vertices, self._faces, self._table, _threads())
         else:
             self._kernels.local_faces(vertices, self._faces, self._rest_table,
-                                      self.law == "rigid", self._table, self._qface)
+                                      self.law == "rigid", self._table, self._qface, _threads())
 
     def _remap_numpy(self, v: np.ndarray, out: RemapOutput) -> RemapOutput:
         r = reference_remap(self.anchoring, v, rest=self._rest)
@@ -236,6 +285,9 @@ def remap_auto(anchoring: Anchoring, vertices: np.ndarray | None = None, *,
     """One-shot remap with backend selection (``backend`` as in :class:`FastRemapper`).
 
     For per-frame use build a :class:`FastRemapper` once instead: construction precomputes
-    the per-splat constants, which costs more than one remap.
+    the per-splat constants, which costs more than one remap. Under ``"auto"``, fewer than
+    :data:`~gsverse_format.backend.REMAP_NUMPY_BELOW` splats run the numpy reference (no
+    kernel compilation for a one-shot job that the reference finishes sooner).
     """
-    return FastRemapper(anchoring, rotations=rotations, backend=backend).remap(vertices).copy()
+    chosen = resolve_backend(backend, size=len(anchoring.anchors), numpy_below=REMAP_NUMPY_BELOW)
+    return FastRemapper(anchoring, rotations=rotations, backend=chosen).remap(vertices).copy()

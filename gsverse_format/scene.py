@@ -13,6 +13,14 @@ Scenes (``gsverse-convert scene.ply out.glb --mesh fox.obj --mesh chair.glb``)
     (``<input stem> static``), or are dropped with ``--drop-unanchored``. Without
     ``--max-distance`` every splat is anchored to its nearest object.
 
+Does the mesh belong to the splats? (:func:`judge_fit`)
+    Every anchor mesh, one or each object of a scene (judged on the splats nearest to it), is
+    checked with :func:`gsverse_format.fit.assess_fit` once the splats' distances are known:
+    the numbers go to the summary's ``fit``; a misfit is a note and a
+    :class:`~gsverse_format.fit.MeshFitWarning` (``gsverse-convert`` prints it as a
+    ``warning:`` line), or with ``--strict`` a :class:`BindingError` before anything is
+    written.
+
 Physics-ready anchor meshes (:mod:`gsverse_format.manifold`)
     ``--watertight`` replaces each anchor mesh by a closed 2-manifold before binding, so the
     splats are bound (again, for a source's exact anchors) to the repaired surface;
@@ -51,7 +59,9 @@ __all__ = [
     "anchor_scene",
     "bind_scene",
     "distance_stats",
+    "face_distances",
     "finish_physics",
+    "judge_fit",
     "object_name",
     "prepare_mesh",
     "read_scene_meshes",
@@ -70,6 +80,16 @@ def distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:
     p50, p95, p99 = np.percentile(distance, [50, 95, 99])
     return {"p50": float(p50), "p95": float(p95), "p99": float(p99),
             "max": float(distance.max()), "mesh_diagonal": float(diagonal)}
+
+
+def face_distances(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray) -> np.ndarray:
+    """Each splat's distance to its own triangle ``face_index`` of ``mesh`` (float64)."""
+    from .nearest import closest_points_on_triangles
+
+    tri = mesh.triangles()[face_index.astype(np.intp)]
+    _, _, dist = closest_points_on_triangles(splats.means.astype(np.float64), tri[:, 0],
+                                             tri[:, 1], tri[:, 2])
+    return dist
 
 
 def _diagonal(mesh: TriangleMesh) -> float:
@@ -102,13 +122,38 @@ def bind_scene(splats: SplatCloud, meshes: list[TriangleMesh], *, deformation: s
     return owner, bound
 
 
+def judge_fit(means: np.ndarray, mesh: TriangleMesh, distance: np.ndarray, name: str,
+              path: str, options: ConvertOptions, summary: ConvertSummary) -> None:
+    """Whether ``mesh`` belongs to the splats at ``means`` (each at ``distance`` from it):
+    :func:`gsverse_format.fit.assess_fit`, recorded in ``summary.fit``. A misfit is a
+    :class:`~gsverse_format.fit.MeshFitWarning` naming ``path`` and a summary note; with
+    ``options.strict`` a :class:`BindingError` instead (nothing is written)."""
+    import warnings
+
+    from .fit import MeshFitWarning, assess_fit
+
+    if len(means) == 0:
+        return
+    report = assess_fit(means, mesh.vertices, distance)
+    summary.fit.append({"mesh": name, "path": path, **report.as_dict()})
+    if report.ok:
+        return
+    text = f"the anchor mesh does not fit the splats: {report.message()}"
+    if options.strict:
+        raise BindingError(f"{text} (--strict)", path)
+    summary.notes.append(f"{name}: {text}")
+    warnings.warn(f"{path}: {text}", MeshFitWarning, stacklevel=2)
+
+
 def prepare_mesh(mesh: TriangleMesh, options: ConvertOptions, summary: ConvertSummary,
-                 path: str) -> TriangleMesh:
+                 path: str, progress: Progress | None = None) -> TriangleMesh:
     """``--watertight``: ``mesh`` made a closed 2-manifold (a note says what was done)."""
     if not options.watertight:
         return mesh
     from .manifold import make_watertight
 
+    if progress is not None:
+        progress.stage(f"repairing {object_name(path)}'s anchor mesh (--watertight)")
     try:
         repaired, what = make_watertight(mesh)
     except GsverseError as exc:
@@ -152,7 +197,7 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
     ready = []
     for mesh, path in zip(meshes, paths):
         if options.faces is not None and mesh.face_count > options.faces:
-            from .meshops import decimate
+            from .meshops import decimate, decimation_shortfall
 
             progress.stage(f"decimating {object_name(path)}: {mesh.face_count} -> "
                            f"{options.faces} faces")
@@ -160,7 +205,10 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
                 mesh = decimate(mesh, options.faces)
             except GsverseError as exc:
                 raise exc.with_path(path) from None
-        ready.append(prepare_mesh(mesh, options, summary, path))
+            shortfall = decimation_shortfall(mesh, options.faces)
+            if shortfall is not None:
+                summary.notes.append(f"{object_name(path)}: {shortfall}")
+        ready.append(prepare_mesh(mesh, options, summary, path, progress))
     progress.stage(f"binding to the nearest triangles of {len(ready)} objects")
     owner, bound = bind_scene(splats, ready, deformation=options.deformation,
                               progress=progress.update, paths=paths)
@@ -173,6 +221,9 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
     primitives = []
     for j, (mesh, path, b) in enumerate(zip(ready, paths, bound)):
         mine = owner == j
+        # each object is judged on the splats nearest to it (those it could be given)
+        judge_fit(splats.means[mine], mesh, b.distance[mine], object_name(path), path,
+                  options, summary)
         diagonal = _diagonal(mesh)
         limit = None
         if options.max_distance is not None:

@@ -71,9 +71,48 @@ def sh_rotation_matrix(rotation: np.ndarray, degree: int) -> np.ndarray:
     return d
 
 
+#: Rows per block of the generic rotation: bounds its float64 temporaries to a few MiB.
+_ROTATE_BLOCK = 1 << 16
+
+
+def signed_permutation(d: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(index, sign)`` with ``d @ v == sign * v[index]`` when the square matrix ``d`` has
+    exactly one nonzero entry, ±1, in every row and column; ``None`` otherwise."""
+    d = np.asarray(d)
+    nonzero = d != 0
+    if not (np.all(nonzero.sum(axis=1) == 1) and np.all(nonzero.sum(axis=0) == 1)):
+        return None
+    index = np.argmax(nonzero, axis=1)
+    sign = d[np.arange(len(d)), index]
+    if not np.all(np.abs(sign) == 1.0):
+        return None
+    return index, sign
+
+
 def rotate_sh(sh: np.ndarray, rotation: np.ndarray) -> np.ndarray:
-    """Rotate coefficient-major SH ``sh`` (N, K, 3) by the 3x3 ``rotation``; returns float32."""
+    """Rotate coefficient-major SH ``sh`` (N, K, 3) by the 3x3 ``rotation``; returns float32.
+
+    When the rotation matrix of the coefficients is a signed permutation (rotations that map
+    ``z`` to ``±z`` and ``x``, ``y`` to ``±x``, ``±y``: the 180° turn about Z between the 3DGS
+    and glTF frames, 90° turns about Z, identity), the coefficients are reordered and negated
+    in float32, which is exact (the product is then a single ±1 term). Any other rotation is
+    applied in float64 and rounded once to float32, in blocks of :data:`_ROTATE_BLOCK` splats.
+    """
     sh = np.asarray(sh)
     degree = int(round(np.sqrt(sh.shape[1]))) - 1
     d = sh_rotation_matrix(rotation, degree)
-    return np.einsum("ij,njc->nic", d, sh.astype(np.float64)).astype(np.float32)
+    perm = signed_permutation(d)
+    if perm is not None:
+        index, sign = perm
+        sh32 = np.asarray(sh, dtype=np.float32)
+        factors = sign.astype(np.float32)[None, :, None]
+        if np.array_equal(index, np.arange(len(index))):   # signs only (the 180° turn): one pass
+            return np.multiply(sh32, factors)
+        out = np.take(sh32, index, axis=1)   # a new array
+        out *= factors
+        return out
+    out = np.empty(sh.shape, np.float32)
+    for start in range(0, sh.shape[0], _ROTATE_BLOCK):
+        block = sh[start:start + _ROTATE_BLOCK].astype(np.float64)
+        out[start:start + _ROTATE_BLOCK] = np.matmul(d, block)
+    return out

@@ -3,7 +3,9 @@
 3DGS PLY files follow the capture convention of the original 3DGS code (COLMAP-style camera
 frame, +Y down), glTF is +Y up. Like PlayCanvas splat-transform, the converter maps PLY data to
 glTF by a rotation of 180° about Z, ``(x, y, z) -> (−x, −y, z)``, and back when writing PLY.
-Rotating splats rotates means, orientations and the view-dependent SH coefficients.
+Rotating splats rotates means, orientations and the view-dependent SH coefficients. A rotation
+that permutes the axes with signs (the PLY/glTF turn) moves means and SH coefficients by
+reordering and negating them in float32, which is exact; others go through float64.
 """
 from __future__ import annotations
 
@@ -11,7 +13,7 @@ import numpy as np
 
 from . import quaternion as quat
 from .model import TriangleMesh, SplatCloud
-from .sh import rotate_sh
+from .sh import rotate_sh, signed_permutation
 
 #: PLY (3DGS) frame -> glTF frame: 180° about +Z (its own inverse).
 PLY_TO_GLTF = np.diag([-1.0, -1.0, 1.0])
@@ -22,11 +24,15 @@ def rotate_splats(cloud: SplatCloud, rotation: np.ndarray) -> SplatCloud:
     r = np.asarray(rotation, dtype=np.float64)
     if not np.allclose(r @ r.T, np.eye(3), atol=1e-12) or np.linalg.det(r) < 0:
         raise ValueError("rotation must be a proper rotation matrix")
-    means = cloud.means.astype(np.float64) @ r.T
-    q = quat.multiply(quat.from_matrix(r), quat.normalize(cloud.rotations))
+    perm = signed_permutation(r)
+    if perm is not None:   # an axis permutation with signs: exact in float32, no float64 copy
+        means = np.take(cloud.means, perm[0], axis=1) * perm[1].astype(np.float32)
+    else:
+        means = cloud.means.astype(np.float64) @ r.T
+    q = quat.canonical_sign(quat.multiply(quat.from_matrix(r), quat.normalize(cloud.rotations)))
     sh = rotate_sh(cloud.sh, r) if cloud.sh_degree > 0 else cloud.sh
-    return SplatCloud(means, quat.canonical_sign(q), cloud.scales, cloud.opacities, sh,
-                      cloud.color_space, dict(cloud.extra))
+    return SplatCloud(means, q, cloud.scales, cloud.opacities, sh, cloud.color_space,
+                      dict(cloud.extra))
 
 
 def rotate_mesh(mesh: TriangleMesh, rotation: np.ndarray) -> TriangleMesh:

@@ -24,7 +24,8 @@ __all__ = ["EXTENSION", "KHR", "PROFILES", "DEFORMATIONS", "BYTE", "UNSIGNED_BYT
            "UNSIGNED_SHORT", "UNSIGNED_INT", "FLOAT", "COMPONENT_TYPE_NAMES", "COMPONENT_BITS",
            "AnchorField", "ANCHOR_FIELDS", "FIELDS_BY_KEY", "required_fields", "allowed_fields",
            "USD_PROFILE", "USD_DEFORMATION", "USD_MESH", "KHR_ATTRIBUTE_FORMATS", "COV6_ORDER",
-           "COV6_INDEX", "SH_C0"]
+           "COV6_INDEX", "SH_C0", "FACE_COUNTS", "DERIVED_KEYS", "ANCHOR_ENCODINGS",
+           "gltf_required_keys"]
 
 #: The anchor extension, nested in ``KHR_gaussian_splatting``.
 EXTENSION = "GSVERSE_gaussian_splatting_mesh_anchor"
@@ -93,6 +94,19 @@ ANCHOR_FIELDS: tuple[AnchorField, ...] = (
 #: glTF extension key -> field.
 FIELDS_BY_KEY: dict[str, AnchorField] = {f.key: f for f in ANCHOR_FIELDS}
 
+#: Version 1.2: per-face splat counts, the alternative to ``faceIndex`` (exactly one of the two;
+#: ``count`` = the anchor triangle count, not the splat count). Not a per-splat field, so not
+#: in :data:`ANCHOR_FIELDS` (USD keeps explicit arrays).
+FACE_COUNTS = AnchorField("face_counts", "faceCounts", "", "SCALAR",
+                          ((UNSIGNED_BYTE, False), (UNSIGNED_SHORT, False), (UNSIGNED_INT, False)),
+                          ())
+#: Version 1.2: the ``local`` properties a compact asset omits together; readers then derive
+#: them from the rest pose (spec §Derived `local` anchors).
+DERIVED_KEYS: tuple[str, ...] = ("barycentrics", "normalOffset", "localRotation", "localScale")
+#: How a writer stores the anchors: ``explicit`` (version 1.1 layout) or ``compact``
+#: (``faceCounts`` and, for ``local``, derived anchors).
+ANCHOR_ENCODINGS: tuple[str, ...] = ("explicit", "compact")
+
 #: USD attributes of the anchor API that are not per-splat arrays.
 USD_PROFILE = "gsverse:anchor:profile"
 USD_DEFORMATION = "gsverse:anchor:deformation"
@@ -103,6 +117,16 @@ def required_fields(profile: str) -> tuple[AnchorField, ...]:
     """The anchor fields ``profile`` requires (glTF: every one; USD: ``localScale`` may be
     omitted when the rest scales stand for it)."""
     return tuple(f for f in ANCHOR_FIELDS if profile in f.profiles)
+
+
+def gltf_required_keys(profile: str, *, counts: bool, derived: bool) -> tuple[str, ...]:
+    """The glTF properties an anchor object of ``profile`` must have: ``faceCounts``
+    (``counts``) or ``faceIndex``, and the per-splat fields, without :data:`DERIVED_KEYS` when
+    the ``local`` anchors are ``derived``."""
+    face = FACE_COUNTS.key if counts else "faceIndex"
+    rest = tuple(f.key for f in required_fields(profile) if f.key != "faceIndex"
+                 and not (derived and profile == "local" and f.key in DERIVED_KEYS))
+    return (face,) + rest
 
 
 def allowed_fields(profile: str) -> tuple[AnchorField, ...]:

@@ -1,6 +1,6 @@
 /*
  * gsverse_remap.h -- per-frame remap of GSVERSE_gaussian_splatting_mesh_anchor splats
- * (extension version 1.1).
+ * (extension version 1.2).
  *
  * Portable C99, header-only, no dependencies: it includes only the standard headers
  * <math.h>, <stddef.h> and <stdint.h> (the last two are compiler-provided type headers),
@@ -65,6 +65,16 @@
  *   infinity (anchor mesh, anchors, rest POSITION/ROTATION/SCALE),
  *   gsv_check_quaternions_nonzero() finds a zero localRotation (after dequantization, before
  *   normalization) or gsv_check_scales_nonnegative() a negative localScale component.
+ *
+ *   Compact anchors (version 1.2): gsv_faces_from_counts() turns a faceCounts accessor (one
+ *   count per triangle, the splats grouped by face in face order) into per-splat face indices
+ *   and refuses a wrong count or sum; a local primitive without barycentrics stores no other
+ *   anchor data: gsv_derive_local() derives barycentrics, normal offsets and local rotations
+ *   from the rest pose (POSITION, the dequantized ROTATION) and the rest anchor mesh in
+ *   double precision, and refuses splats on faces degenerate at rest; the local scales are
+ *   the rest SCALE. Derived anchors are used as stored ones: before deriving, refuse a zero
+ *   rest ROTATION (gsv_check_quaternions_nonzero, before normalizing it) and a negative rest
+ *   SCALE component (gsv_check_scales_nonnegative). Then remap as with stored anchors.
  */
 #ifndef GSVERSE_REMAP_H
 #define GSVERSE_REMAP_H
@@ -101,7 +111,8 @@ enum { GSV_AFFINE = 0, GSV_RIGID = 1 };
 /* anchor properties (for gsv_anchor_accessor_allowed) */
 enum {
     GSV_PROP_FACE_INDEX = 0, GSV_PROP_BARYCENTRICS = 1, GSV_PROP_NORMAL_OFFSET = 2,
-    GSV_PROP_LOCAL_ROTATION = 3, GSV_PROP_LOCAL_SCALE = 4, GSV_PROP_RHO = 5
+    GSV_PROP_LOCAL_ROTATION = 3, GSV_PROP_LOCAL_SCALE = 4, GSV_PROP_RHO = 5,
+    GSV_PROP_FACE_COUNTS = 6
 };
 
 #define GSV_EPS_DEGENERATE 1e-6 /* regular iff a > eps * l^2 (spec Triangle frames) */
@@ -184,6 +195,11 @@ GSV_API int gsv_check_face_indices(const uint32_t *face, size_t n, size_t face_c
 GSV_API int gsv_all_finite(const float *values, size_t count);
 GSV_API int gsv_check_quaternions_nonzero(const float *q, size_t count);
 GSV_API int gsv_check_scales_nonnegative(const float *values, size_t count);
+GSV_API int gsv_faces_from_counts(const uint32_t *counts, size_t count_len, size_t face_count,
+                                  size_t n, uint32_t *face);
+GSV_API int gsv_derive_local(const float *rest_vertices, const uint32_t *indices, size_t n,
+                             const uint32_t *face, const float *means, const float *rotations,
+                             float *bary, float *offset, float *rotation);
 
 #ifdef __cplusplus
 }
@@ -750,6 +766,7 @@ GSV_API int gsv_anchor_accessor_allowed(int property, int ncomp, int component_t
     int ct = component_type, nz = normalized ? 1 : 0;
     switch (property) {
         case GSV_PROP_FACE_INDEX:
+        case GSV_PROP_FACE_COUNTS:
             return ncomp == 1 && !nz && (ct == GSV_UNSIGNED_BYTE || ct == GSV_UNSIGNED_SHORT
                                          || ct == GSV_UNSIGNED_INT);
         case GSV_PROP_BARYCENTRICS:
@@ -802,6 +819,112 @@ GSV_API int gsv_check_quaternions_nonzero(const float *q, size_t count) {
 GSV_API int gsv_check_scales_nonnegative(const float *values, size_t count) {
     size_t i;
     for (i = 0; i < count; ++i) if (values[i] < 0.0f) return 0;
+    return 1;
+}
+
+/* Per-splat face indices from faceCounts (version 1.2): splat i belongs to face f with
+   S_f <= i < S_{f+1}, S_f the sum of the counts before f. Returns 0 (refuse the asset) when
+   count_len differs from face_count or the counts, summed in 64-bit integers, differ from n;
+   face (n entries) is written only up to n. */
+GSV_API int gsv_faces_from_counts(const uint32_t *counts, size_t count_len, size_t face_count,
+                                  size_t n, uint32_t *face) {
+    uint64_t total = 0;
+    size_t f, i = 0;
+    uint32_t c;
+    if (count_len != face_count) return 0;
+    for (f = 0; f < face_count; ++f) total += counts[f];
+    if (total != (uint64_t)n) return 0;
+    for (f = 0; f < face_count; ++f)
+        for (c = 0; c < counts[f]; ++c) face[i++] = (uint32_t)f;
+    return 1;
+}
+
+/* Shepperd's quaternion (x, y, z, w; w >= 0) of a row-major rotation matrix, in double. */
+static void gsv__matrix_to_quat_d(const double m[9], double q[4]) {
+    double tr = m[0] + m[4] + m[8], cand[4], s, len;
+    int i, k = 0;
+    cand[0] = 1 + 2 * m[0] - tr; cand[1] = 1 + 2 * m[4] - tr;
+    cand[2] = 1 + 2 * m[8] - tr; cand[3] = 1 + tr;
+    for (i = 1; i < 4; ++i) if (cand[i] > cand[k]) k = i;
+    s = 2 * sqrt(cand[k] > 0 ? cand[k] : 0);
+    if (k == 3) {
+        q[0] = (m[7] - m[5]) / s; q[1] = (m[2] - m[6]) / s; q[2] = (m[3] - m[1]) / s; q[3] = s / 4;
+    } else if (k == 0) {
+        q[0] = s / 4; q[1] = (m[1] + m[3]) / s; q[2] = (m[2] + m[6]) / s; q[3] = (m[7] - m[5]) / s;
+    } else if (k == 1) {
+        q[0] = (m[1] + m[3]) / s; q[1] = s / 4; q[2] = (m[5] + m[7]) / s; q[3] = (m[2] - m[6]) / s;
+    } else {
+        q[0] = (m[2] + m[6]) / s; q[1] = (m[5] + m[7]) / s; q[2] = s / 4; q[3] = (m[3] - m[1]) / s;
+    }
+    len = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (q[3] < 0) len = -len;
+    for (i = 0; i < 4; ++i) q[i] /= len;
+}
+
+/* Derived local anchors (version 1.2, spec Derived local anchors), in double precision in
+   every build: for splat i on face f with rest frame R_r = [t | b | n], edge matrix C_r and
+   first corner v0, (x, y, z) = R_r^T (mu - v0), b2 = y / C_r[1,1],
+   b1 = (x - C_r[0,1] b2) / C_r[0,0], d = z, q_l = conj(q_r) (x) q (q normalized; Hamilton,
+   x y z w). Writes bary[2n], offset[n], rotation[4n]; returns 0 (refuse the asset) when a
+   splat's face is degenerate at rest (a <= eps_deg l^2: C_r is singular). */
+GSV_API int gsv_derive_local(const float *rest_vertices, const uint32_t *indices, size_t n,
+                             const uint32_t *face, const float *means, const float *rotations,
+                             float *bary, float *offset, float *rotation) {
+    size_t s;
+    for (s = 0; s < n; ++s) {
+        const float *v0, *v1, *v2;
+        const float *q = rotations + 4 * s;
+        double e1[3], e2[3], e3[3], cr[3], t[3], b[3], nn[3], rel[3], r[9], qr[4], qq[4];
+        double s1, s2, s3, longest2, a, l1, c01, c11, x, y, z, b2, len;
+        int i;
+        gsv__corners(rest_vertices, indices, face[s], &v0, &v1, &v2);
+        for (i = 0; i < 3; ++i) {
+            e1[i] = (double)v1[i] - (double)v0[i];
+            e2[i] = (double)v2[i] - (double)v0[i];
+            e3[i] = e2[i] - e1[i];
+            rel[i] = (double)means[3 * s + i] - (double)v0[i];
+        }
+        cr[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        cr[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        cr[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        a = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
+        s1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
+        s2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
+        s3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
+        longest2 = s1 > s2 ? s1 : s2;
+        if (s3 > longest2) longest2 = s3;
+        if (!(a > GSV_EPS_DEGENERATE * longest2)) return 0;
+        l1 = sqrt(s1);
+        for (i = 0; i < 3; ++i) { t[i] = e1[i] / l1; nn[i] = cr[i] / a; }
+        b[0] = nn[1] * t[2] - nn[2] * t[1];
+        b[1] = nn[2] * t[0] - nn[0] * t[2];
+        b[2] = nn[0] * t[1] - nn[1] * t[0];
+        c01 = e2[0] * t[0] + e2[1] * t[1] + e2[2] * t[2];
+        c11 = a / l1;
+        x = rel[0] * t[0] + rel[1] * t[1] + rel[2] * t[2];
+        y = rel[0] * b[0] + rel[1] * b[1] + rel[2] * b[2];
+        z = rel[0] * nn[0] + rel[1] * nn[1] + rel[2] * nn[2];
+        b2 = y / c11;
+        bary[2 * s] = (float)((x - c01 * b2) / l1);
+        bary[2 * s + 1] = (float)b2;
+        offset[s] = (float)z;
+        for (i = 0; i < 3; ++i) { r[3 * i] = t[i]; r[3 * i + 1] = b[i]; r[3 * i + 2] = nn[i]; }
+        gsv__matrix_to_quat_d(r, qr);
+        len = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]
+                   + (double)q[3] * q[3]);
+        for (i = 0; i < 4; ++i) qq[i] = len > 0 ? (double)q[i] / len : (i == 3 ? 1.0 : 0.0);
+        /* conj(q_r) (x) q */
+        {
+            double ax = -qr[0], ay = -qr[1], az = -qr[2], aw = qr[3];
+            double ox = aw * qq[0] + ax * qq[3] + ay * qq[2] - az * qq[1];
+            double oy = aw * qq[1] - ax * qq[2] + ay * qq[3] + az * qq[0];
+            double oz = aw * qq[2] + ax * qq[1] - ay * qq[0] + az * qq[3];
+            double ow = aw * qq[3] - ax * qq[0] - ay * qq[1] - az * qq[2];
+            if (ow < 0) { ox = -ox; oy = -oy; oz = -oz; ow = -ow; }
+            rotation[4 * s] = (float)ox; rotation[4 * s + 1] = (float)oy;
+            rotation[4 * s + 2] = (float)oz; rotation[4 * s + 3] = (float)ow;
+        }
+    }
     return 1;
 }
 

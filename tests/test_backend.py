@@ -81,3 +81,102 @@ def test_numba_missing(monkeypatch):
     monkeypatch.setenv("GSVERSE_BACKEND", "numba")
     with pytest.raises(BackendUnavailableError):
         FastRemapper(_anchoring())
+
+
+def test_small_jobs_run_the_reference_under_auto(monkeypatch):
+    assert resolve_backend(size=99, numpy_below=100) == "numpy"
+    assert resolve_backend(size=100, numpy_below=100) == ("numba" if numba_available() else "numpy")
+    assert resolve_backend("numpy", size=10**9, numpy_below=100) == "numpy"
+    if numba_available():
+        # an explicit choice (argument, set_backend, environment) is never overridden by size
+        assert resolve_backend("numba", size=1, numpy_below=100) == "numba"
+        set_backend("numba")
+        assert resolve_backend(size=1, numpy_below=100) == "numba"
+        set_backend("auto")
+        monkeypatch.setenv("GSVERSE_BACKEND", "numba")
+        assert resolve_backend(size=1, numpy_below=100) == "numba"
+
+
+def test_nearest_dispatch_by_size(monkeypatch):
+    calls = []
+    monkeypatch.setattr("gsverse_format.nearest.nearest_triangles_numpy",
+                        lambda *a, **k: calls.append("numpy"))
+    p, v, f = np.zeros((3, 3)), np.eye(3), np.array([[0, 1, 2]])
+    nearest_triangles(p, v, f)
+    assert calls == ["numpy"]                          # 4 points + faces, far below the threshold
+    assert backend.NEAREST_NUMPY_BELOW > 3 + 1
+    if numba_available():
+        monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 4)
+        result = nearest_triangles(p, v, f)            # 4 is not below 4: the compiled search
+        assert calls == ["numpy"] and result.face.tolist() == [0, 0, 0]
+
+
+_COLD_START = r"""
+import json, os, sys
+from gsverse_format.cli.convert import main as convert
+from gsverse_format.validators.cli import main as validate
+out = os.path.join(sys.argv[1], "x.glb")
+rc = convert(["-q", "-w", "examples/capsule/splats.ply", out, "--mesh", "examples/capsule/mesh.obj"])
+rc2 = validate([out])
+cache = [os.path.join(d, f) for d, _, fs in os.walk(os.environ["NUMBA_CACHE_DIR"]) for f in fs]
+print(json.dumps({"rc": [rc, rc2], "numba": "numba" in sys.modules, "cache": cache}))
+"""
+
+
+def test_readme_example_compiles_nothing(tmp_path):
+    """The README's first command and a validation of its output, in a fresh process with an
+    empty numba cache: the small job runs the numpy paths and never imports numba, so nothing
+    is compiled (the cold-start cost of issue 16)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    cache = tmp_path / "numba-cache"
+    cache.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "GSVERSE_BACKEND"}
+    env["NUMBA_CACHE_DIR"] = str(cache)
+    proc = subprocess.run([sys.executable, "-c", _COLD_START, str(tmp_path)], cwd=root, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert report["rc"] == [0, 0]
+    assert report["numba"] is False and report["cache"] == []
+
+
+_TBB_CLASH = r"""
+import warnings
+import numpy as np
+import pymeshlab  # noqa: F401  (bundles an older libtbb)
+warnings.simplefilter("always")
+from gsverse_format.nearest import nearest_triangles
+rng = np.random.default_rng(0)
+v = rng.random((30, 3))
+f = rng.integers(0, 30, (40, 3))
+nearest_triangles(rng.random((50, 3)), v, f, method="numba")
+import numba
+print(numba.threading_layer())
+"""
+
+
+def test_no_tbb_clash_with_pymeshlab():
+    """pymeshlab loaded first used to make numba's TBB probe warn; the package's threading
+    layer priority (OpenMP first) never probes TBB when OpenMP is there."""
+    import os
+    import subprocess
+    import sys
+
+    pytest.importorskip("pymeshlab")
+    if not numba_available():
+        pytest.skip("numba not installed")
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY")}
+    proc = subprocess.run([sys.executable, "-c", _TBB_CLASH], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    layer = proc.stdout.split()[-1]
+    assert layer in ("omp", "tbb", "workqueue")
+    if layer == "omp":
+        assert "TBB" not in proc.stderr, proc.stderr

@@ -89,7 +89,7 @@ def test_local_batch_json_corrupt_file_reported(library, tmp_path, capsys):
     for p in shared_plys():
         asset = read_gltf(out / (p.stem + ".glb"))
         assert not asset.anchored and asset.splat_count() > 0
-    assert not [p for p in out.rglob(".tmp-*")]
+    assert not [p for p in out.rglob(".*")]  # no temporary file (hidden, see atomic.py)
 
 
 def test_dask_cluster_outputs_are_byte_identical(library, tmp_path, capsys):

@@ -23,6 +23,7 @@ def test_quick_benchmark_writes_the_report(tmp_path):
     assert proc.returncode == 0, proc.stderr[-4000:]
     report = (out / "report.md").read_text(encoding="utf-8")
     for heading in ("## Remap speed", "## Binding", "## `gsverse-convert` end to end", "## Validation",
+                    "## File size: anchored against plain KHR",
                     "## Peak memory", "## Accuracy against analytic deformations",
                     "## Stretch: our profiles against a VR-GS-style cage",
                     "## Rendering: speed and accuracy in image space"):

@@ -84,7 +84,7 @@ def test_suite_covers_what_plugins_must_handle(suite, manifests):
                    "extreme:stretch-100x", "extreme:compress-0.01x", "extreme:offset-1e5",
                    "extreme:scales", "extreme:near-coincident", "invalid", "rule:threshold",
                    "rule:games-degenerate", "rule:ties", "rule:scale", "rule:rest-precision",
-                   "rule:quaternion-norm"]:
+                   "rule:quaternion-norm", "encoding:face-counts", "encoding:derived"]:
         assert needed in tags, needed
     # every family exists for both profiles and both laws
     for family in ("stretch", "twist", "bend", "shake", "skinned", "zero-area-pose", "sliver",
@@ -1020,3 +1020,62 @@ def test_float32_games_needs_the_relative_centroid_not_the_relative_mean(suite, 
     assert not naive & games, sorted(naive & games)
     assert {"games-offset-1e5", "games-near-coincident-vertices"} <= literal
     assert literal <= games
+
+
+# --------------------------------------------------------------------------- compact anchors (1.2)
+
+def _counts_reversed(asset):
+    """Broken: the faces of faceCounts assigned from the last face down (ignores the order)."""
+    from gsverse_format.conformance.minimal_reader import face_index
+
+    face = face_index(asset)
+    if asset.face_counts is None:
+        return face
+    counts = asset.face_counts.values[:, 0].astype(np.int64)
+    last = len(counts) - 1
+    return np.repeat(np.arange(last, -1, -1, dtype=np.uint32), counts[::-1])
+
+
+def _derive_wrong_offset_sign(asset):
+    """Broken: the normal offset derived with the wrong sign (d = −z)."""
+    from gsverse_format.conformance.minimal_reader import derive_local
+
+    out = derive_local(asset)
+    out["normalOffset"] = -out["normalOffset"]
+    return out
+
+
+def _derive_wrong_rotation_order(asset):
+    """Broken: q_l = q ⊗ conj(q_r) instead of conj(q_r) ⊗ q."""
+    from gsverse_format.conformance import minimal_reader as mr
+
+    out = mr.derive_local(asset)
+    q = mr.dequantize(asset.rotations)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    qr = quaternion.multiply(q, quaternion.conjugate(out["localRotation"]))   # = q_r
+    out["localRotation"] = quaternion.multiply(q, quaternion.conjugate(qr))
+    return out
+
+
+def test_broken_face_counts_order_fails_exactly_the_face_counts_cases(suite, manifests,
+                                                                     tmp_path, monkeypatch):
+    from gsverse_format.conformance import harness
+
+    monkeypatch.setattr(harness, "face_index", _counts_reversed)
+    report = _run(suite, tmp_path / "r", RawReferencePlugin)
+    counted = _ids(manifests, lambda m: m["kind"] == "remap"
+                   and m["anchor"]["face_encoding"] == "faceCounts")
+    assert counted >= {"local-rigid-face-counts", "games-face-counts", "local-affine-derived"}
+    assert _failed(report) == counted
+
+
+@pytest.mark.parametrize("broken", [_derive_wrong_offset_sign, _derive_wrong_rotation_order])
+def test_broken_derivation_fails_exactly_the_derived_cases(suite, manifests, tmp_path,
+                                                           monkeypatch, broken):
+    from gsverse_format.conformance import harness
+
+    monkeypatch.setattr(harness, "derive_local", broken)
+    report = _run(suite, tmp_path / "r", RawReferencePlugin)
+    derived = _tagged(manifests, "encoding:derived")
+    assert len(derived) == 5
+    assert _failed(report) == derived

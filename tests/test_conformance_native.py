@@ -3,7 +3,7 @@
 Used by tests/test_conformance.py. :func:`build` compiles the header with the system C
 compiler (``cc``, or ``$CC``) into a shared library; :class:`CPlugin` is a harness in the
 sense of spec/conformance.md: it imports the asset with the minimal reader (no glTF library),
-dequantizes and checks the anchors with the header's helpers (refusing what spec v1.1 makes
+dequantizes and checks the anchors with the header's helpers (refusing what spec v1.2 makes
 invalid), normalizes the quaternions and remaps with the header.
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ size_t gsv_sizeof_games_face(void) { return sizeof(gsv_games_face); }
 """
 
 PROPS = {"faceIndex": 0, "barycentrics": 1, "normalOffset": 2, "localRotation": 3,
-         "localScale": 4, "rho": 5}
+         "localScale": 4, "rho": 5, "faceCounts": 6}
 
 
 def compiler() -> str | None:
@@ -82,6 +82,8 @@ def _declare(lib: ctypes.CDLL) -> ctypes.CDLL:
         "gsv_all_finite": ([P, S], I),
         "gsv_check_quaternions_nonzero": ([P, S], I),
         "gsv_check_scales_nonnegative": ([P, S], I),
+        "gsv_faces_from_counts": ([P, S, S, S, P], I),
+        "gsv_derive_local": ([P, P, S, P, P, P, P, P, P], I),
         "gsv_dequantize": ([ctypes.c_int32, I, I], ctypes.c_double),
         "gsv_sizeof_rest_face": ([], S),
         "gsv_sizeof_local_face": ([], S),
@@ -128,7 +130,8 @@ class CPlugin:
 
     def load(self, asset_path: str) -> None:
         a = read_anchored_glb(asset_path)
-        for prop, raw in a.anchors.items():
+        stored = dict(a.anchors, **({"faceCounts": a.face_counts} if a.face_counts else {}))
+        for prop, raw in stored.items():
             if not self.lib.gsv_anchor_accessor_allowed(PROPS[prop], raw.values.shape[1],
                                                         raw.component_type, int(raw.normalized)):
                 raise Refused(f"{prop}: accessor layout not allowed")
@@ -137,7 +140,14 @@ class CPlugin:
         self.indices = np.ascontiguousarray(a.anchor_faces.reshape(-1), dtype=np.uint32)
         self.faces = len(a.anchor_faces)
         self.n = a.count
-        self.face = self._uints(a.anchors["faceIndex"])
+        if a.face_counts is not None:     # version 1.2: one count per triangle
+            counts = self._uints(a.face_counts)
+            self.face = np.zeros(self.n, np.uint32)
+            if not self.lib.gsv_faces_from_counts(_ptr(counts), len(counts), self.faces, self.n,
+                                                  _ptr(self.face)):
+                raise Refused("faceCounts: wrong count or sum")
+        else:
+            self.face = self._uints(a.anchors["faceIndex"])
         if not self.lib.gsv_check_face_indices(_ptr(self.face), self.n, self.faces):
             raise Refused("faceIndex out of range")
         vertices_ok = self.lib.gsv_all_finite(_ptr(self.vertices_rest), self.vertices_rest.size)
@@ -148,10 +158,29 @@ class CPlugin:
         if not all(self.lib.gsv_all_finite(_ptr(x), x.size)
                    for x in (self.rest_means, self.rest_rotation, self.rest_scale)):
             raise Refused("non-finite rest pose (POSITION, ROTATION or SCALE)")
+        if a.derived and not (
+                self.lib.gsv_check_quaternions_nonzero(_ptr(self.rest_rotation), self.n)
+                and self.lib.gsv_check_scales_nonnegative(_ptr(self.rest_scale),
+                                                          self.rest_scale.size)):
+            # derived anchors are used as stored ones (version 1.2)
+            raise Refused("derived localRotation of length zero or negative localScale")
         # the rest-pose ROTATION is normalized before use, whatever its component type
         self.lib.gsv_normalize_quaternions(_ptr(self.rest_rotation), self.n)
-        self.bary = self._floats(a.anchors["barycentrics"])
         self.profile = a.profile
+        if a.derived:                     # version 1.2: derived from the rest pose, in double
+            self.bary = np.zeros((self.n, 2), np.float32)
+            offset = np.zeros(self.n, np.float32)
+            rotation = np.zeros((self.n, 4), np.float32)
+            if not self.lib.gsv_derive_local(_ptr(self.vertices_rest), _ptr(self.indices), self.n,
+                                             _ptr(self.face), _ptr(self.rest_means),
+                                             _ptr(self.rest_rotation), _ptr(self.bary),
+                                             _ptr(offset), _ptr(rotation)):
+                raise Refused("derived anchors on a face degenerate at rest")
+            a.anchors.update({"normalOffset": Raw(offset[:, None], 5126, False),
+                              "localRotation": Raw(rotation, 5126, False),
+                              "localScale": Raw(self.rest_scale, 5126, False)})
+        else:
+            self.bary = self._floats(a.anchors["barycentrics"])
         if a.profile == "games":
             self.rho = self._floats(a.anchors["rho"])[:, 0].copy()
             if not vertices_ok or not all(self.lib.gsv_all_finite(_ptr(x), x.size)

@@ -1,6 +1,6 @@
 """A bug is a crash, never "bad input": an unexpected exception injected deep inside each reader
 propagates out of the library as itself, the validator reports it as INTERNAL_ERROR naming
-its type, and the fuzz harness counts it as a crash."""
+its type, and the fuzz harness counts it as an internal error."""
 from __future__ import annotations
 
 import base64
@@ -68,7 +68,8 @@ def broken_model(monkeypatch):
 
 
 def _crash_targets(fuzzer: fz.Fuzzer) -> dict[str, str]:
-    return {f.target: f.detail for f in fuzzer.failures if f.kind == "crash"}
+    """Target -> detail of the internal errors the fuzz harness found."""
+    return {f.target: f.detail for f in fuzzer.failures if f.kind == "internal"}
 
 
 # ---------------------------------------------------------------------------- glTF
@@ -122,7 +123,7 @@ def test_fuzz_harness_counts_a_gltf_bug_as_a_crash(seed_files, broken_accessors,
     assert set(crashes) == {"read_gltf", "validate"}
     assert crashes["read_gltf"].startswith("Injected: ")
     assert "INTERNAL_ERROR: Injected: " in crashes["validate"]
-    assert "rejected" not in fuzzer.outcomes["read_gltf"]
+    assert "refused" not in fuzzer.outcomes["read_gltf"]
     fuzzer.run_one(".gltf", seed_files["mesh"].read_bytes())
     assert _crash_targets(fuzzer)["read_mesh"].startswith("Injected: ")
 
@@ -141,7 +142,7 @@ def test_fuzz_harness_counts_a_ply_bug_as_a_crash(seed_files, broken_model, tmp_
     fuzzer.run_one(".ply", seed_files[".ply"].read_bytes())
     crashes = _crash_targets(fuzzer)
     assert "read_splat_ply" in crashes and crashes["read_splat_ply"].startswith("Injected: ")
-    assert "rejected" not in fuzzer.outcomes["read_splat_ply"]
+    assert "refused" not in fuzzer.outcomes["read_splat_ply"]
 
 
 # ---------------------------------------------------------------------------- USD
@@ -159,9 +160,11 @@ def test_usd_reader_lets_a_bug_propagate(tmp_path, monkeypatch):
         read_usd(path)
 
 
-def test_fuzz_harness_counts_a_usd_bug_as_a_crash(tmp_path, monkeypatch):
-    """An unexpected exception in the USD reader (in its child process) is a crash for the
-    fuzz harness and an INTERNAL_ERROR for the validator, never a rejected input."""
+@pytest.mark.parametrize("usd", ["worker", "api"])
+def test_fuzz_harness_counts_a_usd_bug_as_a_crash(tmp_path, monkeypatch, usd):
+    """An unexpected exception in the USD reader (in the fuzz harness's USD worker, or in the
+    isolation child of the public API) is an internal error for the fuzz harness and an
+    INTERNAL_ERROR for the validator, never a refused input."""
     pytest.importorskip("pxr")
     from gsverse_format.io.usd import isolation, write_usd
     from usd_validation_assets import BROKEN_READER, local_asset
@@ -169,10 +172,14 @@ def test_fuzz_harness_counts_a_usd_bug_as_a_crash(tmp_path, monkeypatch):
     good = tmp_path / "good.usda"
     write_usd(local_asset(), good)
     monkeypatch.setattr(isolation, "CHILD_CODE", BROKEN_READER + isolation.CHILD_CODE)
-    fuzzer = fz.Fuzzer(str(tmp_path / "work"))
+    monkeypatch.setattr(fz, "USD_WORKER_CODE", BROKEN_READER + fz.USD_WORKER_CODE)
+    fuzzer = fz.Fuzzer(str(tmp_path / "work"), targets=fz.make_targets(usd))
     (tmp_path / "work").mkdir()
-    fuzzer.run_one(".usda", good.read_bytes())
+    try:
+        fuzzer.run_one(".usda", good.read_bytes())
+    finally:
+        fuzzer.close()
     crashes = _crash_targets(fuzzer)
-    assert set(crashes) == {"read_usd", "validate"}, fuzzer.outcomes
-    assert "KeyError" in crashes["read_usd"] and "INTERNAL_ERROR" in crashes["validate"]
-    assert "rejected" not in fuzzer.outcomes["read_usd"]
+    assert set(crashes) == {"read_usd", "validate_usd"}, fuzzer.outcomes
+    assert "KeyError" in crashes["read_usd"] and "INTERNAL_ERROR" in crashes["validate_usd"]
+    assert "refused" not in fuzzer.outcomes["read_usd"]

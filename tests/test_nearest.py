@@ -7,6 +7,20 @@ import pytest
 from gsverse_format.nearest import NearestResult, closest_points_on_triangles, nearest_triangles
 
 
+@pytest.fixture(autouse=True, params=["auto", "auto-compiled"])
+def auto_path(request, monkeypatch):
+    """Every test runs ``method="auto"`` twice: as shipped (these small jobs take the numpy
+    reference, see ``gsverse_format.backend.NEAREST_NUMPY_BELOW``) and with the size threshold
+    at 0, so that ``auto`` takes the compiled search."""
+    if request.param == "auto-compiled":
+        from gsverse_format.backend import numba_available
+
+        if not numba_available():
+            pytest.skip("numba not installed")
+        monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 0)
+    return request.param
+
+
 # --------------------------------------------------------------------------- references
 
 def brute_force(points, vertices, faces, exclude=None):

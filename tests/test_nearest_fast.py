@@ -279,6 +279,9 @@ def test_dispatch(monkeypatch):
     real = nf.build_tree
     monkeypatch.setattr(nf, "build_tree", lambda *a: used.append(1) or real(*a))
     nearest_triangles(p, v, f)
+    assert used == []                                    # auto, a small job: the reference
+    monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 0)
+    nearest_triangles(p, v, f)
     assert used == [1]                                   # auto: compiled when numba imports
     monkeypatch.setenv("GSVERSE_BACKEND", "numpy")
     nearest_triangles(p, v, f)

@@ -89,7 +89,8 @@ def test_sources_are_registered_in_one_table():
     from gsverse_format.converters import SOURCES, get_source
     from gsverse_format.errors import UsageError
 
-    assert list(SOURCES) == ["3dgs", "sugar", "trellis", "games", "khr"]
+    assert list(SOURCES) == ["3dgs", "sugar", "trellis", "games", "khr", "splat", "ksplat", "spz",
+                             "compressed-ply", "sog"]
     assert all(s.detect is not None for s in SOURCES.values())
     with pytest.raises(UsageError, match="auto, 3dgs, sugar"):
         get_source("colmap")

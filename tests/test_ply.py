@@ -701,8 +701,8 @@ def test_compressed_playcanvas(tmp_path):
                                          "packed_color")]
     path = write(tmp_path, "c.compressed.ply",
                  raw_ply("binary_little_endian", [("chunk", 1, chunk), ("vertex", 1, packed)]))
-    message = ("compressed PLY (SuperSplat/PlayCanvas) is not supported yet; "
-               "decompress it first, e.g. with splat-transform")
+    message = ("compressed PLY (SuperSplat/PlayCanvas) is not the 3DGS PLY layout; "
+               "read it as compressed-ply (gsverse-convert --from compressed-ply)")
     assert str(expect_error(path)).endswith(message)
     assert str(expect_error(path, reader=describe_ply)).endswith(message)
 

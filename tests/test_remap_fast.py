@@ -245,3 +245,61 @@ def test_cov6_round_trip():
     m = m @ np.swapaxes(m, 1, 2)
     assert np.allclose(rf.cov6_to_matrix(rf.matrix_to_cov6(m)), m)
     assert rf.COV6_ORDER == ("xx", "xy", "xz", "yy", "yz", "zz")
+
+
+@needs_numba
+@pytest.mark.parametrize("kind", ["affine", "rigid", "games"])
+def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
+    """Splats grouped by face take the one-pass kernels (runs of a face, chunks handed out
+    dynamically); shuffled splats the two passes. Same bits for every splat, whatever the
+    chunk size (runs split across chunks) and the thread count."""
+    import numba
+
+    from gsverse_format import remap_compiled_runs as runs
+
+    base = anchorings[kind]
+    order = np.argsort(base.anchors.face_index, kind="stable")
+    anchoring = Anchoring(mesh, base.anchors.subset(order))
+    rot = kind != "affine"
+    vertices = _deformations(mesh)["twist"]
+    one = rf.FastRemapper(anchoring, rotations=rot, backend="numba")
+    assert one.one_pass
+    first = one.remap(vertices).copy()
+    _check_against_reference(anchoring, vertices, first)
+    perm = np.random.default_rng(3).permutation(len(anchoring.anchors))
+    two = rf.FastRemapper(Anchoring(mesh, anchoring.anchors.subset(perm)), rotations=rot,
+                          backend="numba")
+    assert not two.one_pass                        # shuffled: more runs than faces
+    shuffled = two.remap(vertices)
+    fields = ["means", "cov6"] + (["rotations", "scales"] if rot else [])
+    for name in fields:
+        assert np.array_equal(getattr(shuffled, name), getattr(first, name)[perm]), name
+    # small chunks: runs cut at chunk boundaries, faces computed once per piece
+    plan = runs.plan_runs(one._face, mesh.face_count, chunk=64)
+    assert plan is not None and plan.runs > one._plan.runs and plan.size == 64
+    one._plan = plan
+    one._table = np.zeros((plan.runs, one._table.shape[1]), np.float32)
+    one._qface = np.zeros((plan.runs if one._qface.shape[0] else 0, 4), np.float32)
+    threads = numba.get_num_threads()
+    try:
+        for th in sorted({1, threads}):
+            numba.set_num_threads(th)
+            again = one.remap(vertices)
+            for name in fields:
+                assert np.array_equal(getattr(again, name), getattr(first, name)), (th, name)
+    finally:
+        numba.set_num_threads(threads)
+
+
+def test_run_plan():
+    from gsverse_format.remap_compiled_runs import plan_runs
+
+    face = np.array([0, 0, 0, 2, 2, 5, 5, 5, 5, 5], np.int32)
+    plan = plan_runs(face, 6, chunk=4)
+    # runs start at every face change and at every multiple of the chunk size
+    assert plan.face.tolist() == [0, 2, 2, 5, 5]
+    assert plan.run_of.tolist() == [0, 0, 0, 1, 2, 3, 3, 3, 4, 4]
+    assert plan.chunk.tolist() == [0, 2, 4, 5] and plan.size == 4
+    assert plan_runs(np.array([0, 1, 0, 1, 0, 1], np.int32), 2, chunk=4) is None
+    empty = plan_runs(np.zeros(0, np.int32), 3)
+    assert empty.runs == 0 and empty.chunk.tolist() == [0]

@@ -477,6 +477,7 @@ def test_missing_usd_core_is_one_clear_line(tmp_path):
         from gsverse_format.cli.convert import main
         from gsverse_format.errors import UsageError
         from gsverse_format.io.usd import read_usd, MISSING_USD_CORE
+        from gsverse_format.install import missing_usd_core
         err = io.StringIO()
         with contextlib.redirect_stderr(err):
             code = main([ARGS["ply"], ARGS["out"], "--plain", "-q"])
@@ -485,13 +486,14 @@ def test_missing_usd_core_is_one_clear_line(tmp_path):
             raised = None
         except UsageError as exc:
             raised = str(exc)
-        emit({"code": code, "stderr": err.getvalue(), "raised": raised, "message": MISSING_USD_CORE})
+        emit({"code": code, "stderr": err.getvalue(), "raised": raised, "message": MISSING_USD_CORE,
+              "fitting": missing_usd_core()})
     ''', block_pxr=True, ply=str(tmp_path / "in.ply"), out=str(tmp_path / "out.usda"))
     assert out["message"] == "USD support needs usd-core: pip install 'gsverse-format[usd]'"
     assert out["code"] == 2
     lines = out["stderr"].strip().splitlines()
-    assert len(lines) == 1 and lines[0].endswith(out["message"]) and "out.usda" in lines[0]
-    assert out["raised"].endswith(out["message"])
+    assert len(lines) == 1 and lines[0].endswith(out["fitting"]) and "out.usda" in lines[0]
+    assert out["raised"].endswith(out["fitting"])
     assert not (tmp_path / "out.usda").exists()
 
 

@@ -16,7 +16,7 @@ CTYPES = tuple(V.COMPONENT_TYPE_NAMES)
 
 
 def _combinations():
-    for field in V.ANCHOR_FIELDS:
+    for field in V.ANCHOR_FIELDS + (V.FACE_COUNTS,):
         for ncomp, gtype in GTYPES.items():
             for ctype in CTYPES:
                 for normalized in (False, True):
@@ -36,7 +36,7 @@ def test_c_header_allows_exactly_the_vocabulary_formats(tmp_path):
     if compiler() is None:
         pytest.skip("no C compiler")
     lib = build(tmp_path, real="double")
-    assert set(PROPS) == {f.key for f in V.ANCHOR_FIELDS}
+    assert set(PROPS) == {f.key for f in V.ANCHOR_FIELDS + (V.FACE_COUNTS,)}
     for field, ncomp, gtype, ctype, normalized in _combinations():
         got = bool(lib.gsv_anchor_accessor_allowed(PROPS[field.key], ncomp, ctype,
                                                    int(normalized)))
@@ -44,14 +44,29 @@ def test_c_header_allows_exactly_the_vocabulary_formats(tmp_path):
 
 
 def test_json_schema_names_and_requires_the_vocabulary_fields():
+    from gsverse_format.validators.schema import schema_errors
+
     name = f"primitive.{V.KHR}.{V.EXTENSION}.schema.json"
     schema = json.loads((resources.files("gsverse_format") / "schema" / name).read_text("utf-8"))
-    keys = {f.key for f in V.ANCHOR_FIELDS}
+    keys = {f.key for f in V.ANCHOR_FIELDS} | {V.FACE_COUNTS.key}
     assert keys <= set(schema["properties"])
-    base = set(schema["required"]) & keys
-    by_profile = {branch["properties"]["profile"]["const"]: set(branch["required"]) | base
-                  for branch in schema["oneOf"]}
-    assert set(by_profile) == set(V.PROFILES)
+    assert {branch["properties"]["profile"]["const"] for branch in schema["oneOf"]} == \
+        set(V.PROFILES)
+    # the schema requires exactly what gltf_required_keys says, for every encoding
     for profile in V.PROFILES:
-        assert by_profile[profile] == {f.key for f in V.required_fields(profile)}, profile
+        for counts in (False, True):
+            for derived in ((False, True) if profile == "local" else (False,)):
+                required = V.gltf_required_keys(profile, counts=counts, derived=derived)
+                obj = {"mesh": 0, "profile": profile, **{k: 1 for k in required}}
+                assert schema_errors(obj, "") == [], (profile, counts, derived)
+                for key in required:
+                    partial = {k: v for k, v in obj.items() if k != key}
+                    assert schema_errors(partial, ""), (profile, counts, derived, key)
+                other = "faceIndex" if counts else V.FACE_COUNTS.key
+                assert schema_errors(dict(obj, **{other: 1}), ""), "both face encodings"
+    derived = {"mesh": 0, "profile": "local", "faceCounts": 1}
+    for key in V.DERIVED_KEYS[1:]:
+        assert schema_errors(dict(derived, **{key: 1}), ""), key
+    assert V.gltf_required_keys("local", counts=False, derived=False) == tuple(
+        f.key for f in V.required_fields("local"))
     assert schema["properties"]["deformation"]["enum"] == list(V.DEFORMATIONS)

@@ -238,6 +238,11 @@ def _(folder):
     return Trigger(_write(folder, "far.usda", local_asset(60, floater=True)))
 
 
+@usd_trigger("ANCHOR_MESH_MISFIT")
+def _(folder):
+    return Trigger(_write(folder, "misfit.usda", local_asset(60, away=50.0)))
+
+
 @usd_trigger("GAMES_RHO_NEGATIVE")
 def _(folder):
     return Trigger(_write(folder, "rho.usda", games_asset(negative_rho=True)))

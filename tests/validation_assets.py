@@ -38,13 +38,18 @@ JSON_CHUNK, BIN_CHUNK = 0x4E4F534A, 0x004E4942
 # ---------------------------------------------------------------------------- model assets
 
 def local_asset(n: int = 60, *, deformation: str = "affine", seed: int = 1,
-                floater: bool = False, shuffle: bool = False, lift: float = 0.0) -> SplatAsset:
+                floater: bool = False, shuffle: bool = False, lift: float = 0.0,
+                away: float = 0.0) -> SplatAsset:
     """Splats on a small capsule mesh, bound with the reference binder (rest pose consistent),
     plus a plain static primitive. ``floater`` adds a splat far from the mesh; ``shuffle``
     stores the anchored splats out of face order; ``lift`` moves the splats outwards (on the
-    convex mesh, splats near edges then have their foot point outside their triangle)."""
+    convex mesh, splats near edges then have their foot point outside their triangle);
+    ``away`` binds the splats to the mesh moved this far along +x (a mesh that does not fit
+    its splats)."""
     mesh = example_mesh(subdivisions=1)
     cloud = example_splats(mesh, n, seed=seed)
+    if away:
+        mesh = TriangleMesh(mesh.vertices + np.array([away, 0.0, 0.0], np.float32), mesh.faces)
     if lift:
         radial = cloud.means / np.linalg.norm(cloud.means, axis=1, keepdims=True)
         cloud.means = (cloud.means + lift * radial).astype(np.float32)
@@ -236,6 +241,11 @@ def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
              {"quantize": {"barycentrics": "unsigned_byte", "localRotation": "byte"}}),
             ("quantized8_games.glb", games_asset(), {"quantize": {"barycentrics": "unsigned_byte"}}),
             ("rigged.glb", rigged_asset(), {}),
+            ("compact_local.glb", local_asset(lift=0.05), {"anchors": "compact"}),
+            ("compact_rigid_q8.gltf", local_asset(deformation="rigid"),
+             {"anchors": "compact", "quantize": {"ROTATION": "byte"}}),
+            ("compact_games.glb", games_asset(), {"anchors": "compact",
+                                                  "quantize": {"barycentrics": "unsigned_short"}}),
             ("plain.glb", SplatAsset([SplatPrimitive(example_splats(example_mesh(1), 20), None,
                                                      "plain")]), {})):
         out.append(Doc.of(asset, **kw).write(folder, name))
@@ -755,6 +765,11 @@ def _(folder):
     return Trigger(Doc.of(local_asset(floater=True)).write(folder, "floater.glb"))
 
 
+@trigger("ANCHOR_MESH_MISFIT")
+def _(folder):
+    return Trigger(Doc.of(local_asset(away=50.0)).write(folder, "misfit.glb"))
+
+
 @trigger("LOCAL_SCALE_NOT_SHARED")
 def _(folder):
     def edit(d):
@@ -770,6 +785,38 @@ def _(folder):
 @trigger("ANCHOR_NOT_SORTED")
 def _(folder):
     return Trigger(Doc.of(local_asset(shuffle=True)).write(folder, "unsorted.glb"))
+
+
+def _compact() -> Doc:
+    return Doc.of(local_asset(), anchors="compact")
+
+
+@trigger("ANCHOR_FACE_COUNTS_COUNT")
+def _(folder):
+    def edit(d):
+        counts = d.values(d.ext()["faceCounts"])[:, 0]
+        d.ext()["faceCounts"] = d.add_accessor(np.append(counts, 0), 5125, "SCALAR")
+    return _edited(folder, "counts_length.glb", edit, _compact)
+
+
+@trigger("ANCHOR_FACE_COUNTS_SUM")
+def _(folder):
+    def edit(d):
+        counts = d.values(d.ext()["faceCounts"])
+        counts[int(np.argmax(counts[:, 0])), 0] -= 1
+    return _edited(folder, "counts_sum.glb", edit, _compact)
+
+
+@trigger("ANCHOR_DERIVED_ON_DEGENERATE")
+def _(folder):
+    def edit(d):
+        prim = d.anchor_prim()
+        counts = d.values(d.ext()["faceCounts"])[:, 0]
+        f = int(np.flatnonzero(counts)[0])
+        corners = d.values(prim["indices"]).reshape(-1)[3 * f:3 * f + 3]
+        pos = d.values(prim["attributes"]["POSITION"])
+        pos[corners[2]] = pos[corners[0]]
+    return _edited(folder, "derived_degenerate.glb", edit, _compact)
 
 
 # -- rest pose ----------------------------------------------------------------------------
@@ -794,3 +841,6 @@ def _(folder):
     trig = Trigger(_local().write(folder, "fault.glb"))
     trig.fault = True
     return trig
+
+
+import validation_assets_input  # noqa: E402,F401  (registers the issues_input triggers)

@@ -16,11 +16,12 @@ import numpy as np
 from gsverse_format.codes import Code
 from gsverse_format.io.gltf import AccessorLayout, describe_format, format_allowed
 from gsverse_format.model import TriangleMesh
-from gsverse_format.vocabulary import (ANCHOR_FIELDS, EXTENSION, FIELDS_BY_KEY, FLOAT, KHR,
-                                       NODE_VISIBILITY,
-                                       PROFILES, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
-                                       required_fields)
+from gsverse_format.vocabulary import (ANCHOR_FIELDS, DERIVED_KEYS, EXTENSION, FACE_COUNTS,
+                                       FIELDS_BY_KEY, FLOAT, KHR, NODE_VISIBILITY, PROFILES,
+                                       UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
+                                       gltf_required_keys)
 
+from .compact import derived_arrays, faces_from_counts
 from .container import Context
 from .khr import SplatData, quantization_step
 from .schema import schema_errors
@@ -156,7 +157,12 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
                 mesh_info = anchor_mesh(ctx, m, p)
 
     profile = obj.get("profile") if obj.get("profile") in PROFILES else None
-    props = [f.key for f in required_fields(profile)] if profile else list(_COMMON)
+    # version 1.2: faceCounts instead of faceIndex; local anchors derived from the rest pose
+    counts = FACE_COUNTS.key in obj and "faceIndex" not in obj
+    derived = profile == "local" and "barycentrics" not in obj
+    face_key = FACE_COUNTS.key if counts else "faceIndex"
+    props = list(gltf_required_keys(profile, counts=counts, derived=derived)) if profile \
+        else [face_key] + [k for k in _COMMON if k != "faceIndex"]
     vertex_attributes = set(splat.attributes.values())
 
     # -- accessors --------------------------------------------------------------------
@@ -168,12 +174,19 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
         lay = ctx.accessor(obj[prop], ppointer)
         if lay is None:
             continue
-        spec = FIELDS_BY_KEY[prop]
+        spec = FIELDS_BY_KEY.get(prop, FACE_COUNTS)
         if not format_allowed(lay, spec.accessor, spec.formats):
             ctx.issues.add(Code.ANCHOR_ACCESSOR_FORMAT, f"{prop} is {describe_format(lay)}; see "
                            f"the spec's table of accessor component types", pointer=ppointer)
             continue
-        if splat.count is not None and lay.count != splat.count:
+        if prop == FACE_COUNTS.key:
+            faces = mesh_info.mesh.face_count if mesh_info and mesh_info.mesh else None
+            if faces is not None and lay.count != faces:
+                ctx.issues.add(Code.ANCHOR_FACE_COUNTS_COUNT, f"faceCounts has {lay.count} "
+                               f"elements but the anchor mesh has {faces} triangles",
+                               pointer=ppointer)
+                continue
+        elif splat.count is not None and lay.count != splat.count:
             ctx.issues.add(Code.ANCHOR_ACCESSOR_COUNT, f"{prop} has {lay.count} elements but the "
                            f"primitive has {splat.count} splats", pointer=ppointer)
             continue
@@ -196,15 +209,23 @@ def check_anchor(ctx: Context, splat: SplatData, obj: Any, pointer: str) -> None
     # -- values -----------------------------------------------------------------------
     arrays: dict[str, np.ndarray] = {}
     for prop, lay in layouts.items():
-        if prop == "faceIndex":
-            raw = ctx.read(lay, f"{pointer}/faceIndex")
-            if raw is not None:
-                arrays[prop] = raw[:, 0].astype(np.int64)
+        if prop in ("faceIndex", FACE_COUNTS.key):
+            raw = ctx.read(lay, f"{pointer}/{prop}")
+            face = None if raw is None else raw[:, 0].astype(np.int64) if prop == "faceIndex" \
+                else faces_from_counts(ctx, raw[:, 0], splat.count, f"{pointer}/{prop}")
+            if face is not None:
+                arrays["faceIndex"] = face
             continue
         arr = ctx.floats(lay, f"{pointer}/{prop}")
         if arr is not None and check_finite(ctx, arr, f"{pointer}/{prop}", prop):
             arrays[prop] = arr
-    values = AnchorValues(profile, arrays, {prop: f"{pointer}/{prop}" for prop in props},
+    locations = {prop: f"{pointer}/{prop}" for prop in props}
+    locations["faceIndex"] = f"{pointer}/{face_key}"
+    if derived:
+        locations.update({key: pointer for key in DERIVED_KEYS})
+        arrays.update(derived_arrays(ctx, mesh_info, arrays.get("faceIndex"), splat.rest_pose(),
+                                     f"{pointer}/{face_key}"))
+    values = AnchorValues(profile, arrays, locations,
                           {prop: quantization_step(lay) for prop, lay in layouts.items()},
                           obj.get("deformation", "affine"))
     check_anchor_values(ctx, values, mesh_info, splat.rest_pose(), consistent=not errors)

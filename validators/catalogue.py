@@ -65,8 +65,9 @@ gsverse-validate FILE... [--format text|json] [-q] [--severity CODE=LEVEL]... [-
 - `--config FILE` reads Khronos-style settings: `{"severityOverrides": {"CODE": "warning"},
   "ignoredIssues": ["CODE"], "maxIssues": 100}`.
 - Caps: `--max-bytes` (file plus every buffer it loads; default 8 GiB), `--max-data-uri-bytes`
-  (each decoded `data:` URI), `--max-splats` (per primitive). Sizes take `k`, `M`, `G`
-  suffixes. Sizes are checked before anything is allocated; no URI is ever fetched.
+  (each decoded `data:` URI; default 256 MiB), `--max-splats` (per primitive). Sizes take `k`,
+  `M`, `G` suffixes. Sizes are checked before anything is allocated; no URI is ever fetched.
+  The other limits of the readers (README §Limits) apply too.
 
 ## Tolerances
 
@@ -93,19 +94,27 @@ with a foreign severity report at that severity for them.
 _OUTRO = """
 ## Robustness
 
-Every reader of the toolkit (PLY, GLB/glTF, meshes) and the validator itself turn bad input
-into one clear error or finding, never an uncaught exception. The fuzz harness mutates valid
-PLY, GLB and glTF files (bit flips, interesting integers, truncation, chunk and header edits,
-JSON number edits, splices) and runs every reader and the validator on each input:
+Every reader of the toolkit (PLY, GLB/glTF, USD, meshes) and the validator itself turn bad
+input into one clear error or finding, never an uncaught exception. The fuzz harness mutates
+valid PLY, GLB, glTF and USD (`.usda`, `.usdc`) files (bit flips, interesting integers,
+truncation, chunk and header edits, splices; for glTF, structure-aware edits of the JSON:
+values of another type, counts, references, offsets, enumerations, extension objects, deleted
+and duplicated keys; for USD text, tokens, array lengths, composition arcs and value clips)
+and runs every reader and the validator on each input, the USD ones in a child process that
+the USD library may crash:
 
 ```
-python -m fuzz.fuzz_readers --runs 100000        # the long run
-python -m fuzz.fuzz_readers --runs 2000          # what the test suite runs on every change
-python -m fuzz.fuzz_readers --engine atheris     # coverage-guided, when atheris is installed
+python -m fuzz.fuzz_readers --runs 100000 --kinds glb,gltf   # a long run, one kind of input
+python -m fuzz.fuzz_readers --runs 2000                      # a short run of every kind
+python -m fuzz.fuzz_readers --engine atheris                 # coverage-guided (atheris)
 ```
 
-It exits 1 and prints the offending inputs (kept under `--crash-dir`) if any input raises
-anything other than the toolkit's one-line errors, or takes longer than `--timeout` seconds.
+Each run of a reader ends as `ok`, `refused` (the toolkit's one-line error, a validator report
+with errors, or the USD library ending its child process) or a failure: `internal` (any other
+exception, or an `INTERNAL_ERROR` finding) or `hang` (longer than `--timeout` seconds). The
+harness prints the count of each per reader (and the readers that let numpy print a
+`RuntimeWarning` on some input), exits 1 on any failure and keeps the failing inputs under
+`--crash-dir`.
 """
 
 

@@ -1,7 +1,11 @@
 """``gsverse-validate FILE...``: validate glTF/GLB and USD splat assets.
 
-Exit status: 0 when no file has errors, 1 when some file has errors, 2 for bad usage or a file
-that could not be read at all. Severities can be raised, lowered or ignored per code
+Exit status: 0 when no file has errors, 1 when some file has errors, 2 for bad usage, a file
+that could not be read at all, or a closed standard output (``>&-``: the report has nowhere to
+go; one line on stderr, nothing validated); 141 when the reader of standard output goes away
+(``| head -1``), as if killed by SIGPIPE, without a message; 130 on Ctrl-C, 143 on SIGTERM, 129
+on SIGHUP (a USD file being checked in a child process: the child is stopped and its
+temporary folder removed). Severities can be raised, lowered or ignored per code
 (``--severity CODE=LEVEL``, ``--ignore CODE``, or a ``--config`` JSON file in the style of the
 Khronos glTF-Validator: ``{"severityOverrides": {"CODE": "warning"}, "ignoredIssues": [...],
 "maxIssues": 100}``); sizes are capped with ``--max-bytes``, ``--max-data-uri-bytes`` and
@@ -13,9 +17,13 @@ import argparse
 import difflib
 import json
 import re
+import signal
 import sys
 
+from gsverse_format.textsafe import escape
 from gsverse_format.version import __version__
+from gsverse_format.cli.boundary import (EXIT_SIGPIPE, Interrupted, interrupting_signals,
+                                         quiet_broken_stdout)
 from gsverse_format.codes import Code
 
 from .container import Options
@@ -78,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-bytes", type=parse_size, metavar="SIZE",
                    help="cap on the file plus the buffers it loads (USD: the file; default: 8G)")
     p.add_argument("--max-data-uri-bytes", type=parse_size, metavar="SIZE",
-                   help="cap on each decoded data: URI (default: only --max-bytes)")
+                   help="cap on each decoded data: URI (default: 256M)")
     p.add_argument("--max-splats", type=_count, metavar="N",
                    help="do not read primitives with more than N splats (default: no cap)")
     p.add_argument("--list-codes", action="store_true",
@@ -148,10 +156,23 @@ def main(argv: list[str] | None = None) -> int:
     stderr naming its type, with exit status 2.
     """
     try:
-        return _main(argv)
+        with interrupting_signals():
+            return _main(argv)
+    except BrokenPipeError:  # "| head": the reader has what it wanted
+        quiet_broken_stdout()
+        return EXIT_SIGPIPE
+    except KeyboardInterrupt as exc:  # Ctrl-C, SIGTERM, SIGHUP
+        _say("interrupted")
+        return 128 + (exc.signum if isinstance(exc, Interrupted) else signal.SIGINT)
     except Exception as err:  # process boundary: a bug, reported as one, never as bad input
-        sys.stderr.write(f"{VALIDATOR_NAME}: internal error: {type(err).__name__}: {err}\n")
+        _say(f"internal error: {type(err).__name__}: {err}")
         return 2
+
+
+def _say(message: str) -> None:
+    """One line on stderr (when there is a stderr)."""
+    if sys.stderr is not None:
+        sys.stderr.write(f"{VALIDATOR_NAME}: {escape(' '.join(message.split()))}\n")
 
 
 def _main(argv: list[str] | None) -> int:
@@ -161,6 +182,9 @@ def _main(argv: list[str] | None) -> int:
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help/--version
         return int(exc.code or 0)
     out = sys.stdout
+    if out is None:
+        _say("error: standard output is closed: the report has nowhere to go")
+        return 2
     if args.list_codes:
         out.write(render_catalogue(as_json=args.format == "json"))
         return 0

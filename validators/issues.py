@@ -15,7 +15,9 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from gsverse_format.codes import Code
-from .issues_rig import RIG_ENTRIES
+from .issues_compact import COMPACT_ENTRIES as _COMPACT, RIG_ENTRIES as _RIG
+from .issues_fit import FIT_ENTRIES as _FIT, FIT_USD as _FIT_USD
+from .issues_input import INPUT_ENTRIES as _INPUT
 from gsverse_format.vocabulary import EXTENSION, KHR
 
 __all__ = ["Severity", "CodeInfo", "CATALOGUE", "Finding", "Issues", "TOLERANCES",
@@ -106,11 +108,11 @@ _ENTRIES = [
        ".usdc, .usd or .usdz and the file does not start with the GLB magic.", "none",
        "Validate glTF and USD assets only (convert other formats with gsverse-convert).",
        fatal=True, unreadable=True),
-    _c(Code.SIZE_LIMIT_EXCEEDED, E, "File", "The file plus the buffers it loads exceed "
-       "--max-bytes (checked before anything is allocated). When the file itself is too large "
-       "validation stops; a buffer that would pass the limit is not loaded. (USD: the file "
-       "itself.)", "none or /buffers/{i}/uri",
-       "Raise --max-bytes if the asset is legitimately that large."),
+    _c(Code.SIZE_LIMIT_EXCEEDED, E, "File", "The file plus its buffers exceed --max-bytes, or "
+       "a count passes a README §Limits limit (a top-level array over 100,000 elements, a node "
+       "graph over 100,000 node instances); checked before anything is allocated or expanded. "
+       "(USD: the file itself.)", "none, /{array}, /nodes/{n} or /buffers/{i}/uri",
+       "Raise --max-bytes if the asset is legitimately that large, or split it."),
     _c(Code.SPLAT_COUNT_LIMIT, E, "File", "A splat primitive declares more splats than "
        "--max-splats; its data are not read.", _PRIM + "/attributes/POSITION",
        "Raise --max-splats, or split the asset."),
@@ -183,7 +185,7 @@ _ENTRIES = [
        "URI has no comma, is not base64, or does not decode.", "/buffers/{i}/uri",
        "Write a base64 data: URI (data:application/octet-stream;base64,...)."),
     _c(Code.DATA_URI_TOO_LARGE, E, "Buffers and URIs", "A data: URI decodes to more bytes than "
-       "--max-data-uri-bytes (checked before decoding).", "/buffers/{i}/uri",
+       "--max-data-uri-bytes (default 256 MiB; checked before parsing).", "/buffers/{i}/uri",
        "Store large buffers in a GLB, or raise the limit."),
     _c(Code.BUFFER_MISSING_DATA, E, "Buffers and URIs", "A buffer has no uri and is not buffer 0 "
        "of a GLB with a BIN chunk.", "/buffers/{i}", "Add the BIN chunk or a uri."),
@@ -359,11 +361,11 @@ _ENTRIES = [
        "truncated or corrupt (a crash or memory exhaustion of the USD library while reading "
        "is caught and reported here).", "none", "Re-export the file.", fatal=True,
        unreadable=True),
-    _c(Code.USD_LAYER_OUTSIDE_FOLDER, E, "USD", "A sublayer, reference or payload (of the root "
-       "layer or of a layer it brings in) is a URI with a scheme, an absolute path, or a "
-       "relative path leaving the file's folder. The stage is not composed: nothing outside "
-       "the folder is ever opened.", "none", "Flatten the stage (usdcat --flatten) or move "
-       "the layers next to the file.", fatal=True),
+    _c(Code.USD_LAYER_OUTSIDE_FOLDER, E, "USD", "A sublayer, reference, payload or value "
+       "clip (of the root layer or of a layer it brings in) is a URI with a scheme, an absolute "
+       "path, or a relative path leaving the file's folder. The stage is not composed: nothing "
+       "outside the folder is ever opened.", "none", "Flatten the stage (usdcat --flatten) or "
+       "move the layers next to the file.", fatal=True),
     _c(Code.USD_TYPE_MISMATCH, E, "USD", "A property has another type than spec/usd.md declares "
        "(for example float[] gsverse:anchor:faceIndices, or a non-array rest-pose attribute).",
        "{prim}.{property} or {mesh}.{property}", "Author the declared type (spec/usd.md "
@@ -491,7 +493,7 @@ _ENTRIES = [
     _c(Code.INTERNAL_ERROR, E, "Validator", "A check failed unexpectedly: a bug in "
        "gsverse-validate, not necessarily in the asset. The other checks still ran.", "none",
        "Report it with the file."),
-] + [_c(c, Severity[s], g, t, p, f) for c, s, g, t, p, f in RIG_ENTRIES]
+] + [_c(c, Severity[s], g, t, p, f) for c, s, g, t, p, f in _RIG + _COMPACT + _FIT + _INPUT]
 
 #: Where the codes shared with glTF point in USD files ({prim}: the splat prim, {mesh}: its
 #: anchor Mesh), and the severity of the value checks for foreign USD prims, whose readers
@@ -518,8 +520,7 @@ _USD_SHARED = {
     Code.GAMES_RHO_NEGATIVE: ("{prim}.gsverse:anchor:rho", None),
     Code.REST_POSE_MEAN_MISMATCH: ("{prim}.positions", None),
     Code.REST_POSE_COVARIANCE_MISMATCH: ("{prim}.orientations", None),
-    Code.INTERNAL_ERROR: ("none", None),
-}
+    Code.INTERNAL_ERROR: ("none", None), **_FIT_USD}
 _ENTRIES = [replace(e, usd=_USD_SHARED[e.code][0], foreign_severity=_USD_SHARED[e.code][1])
             if e.code in _USD_SHARED else replace(e, usd=e.pointer) if e.group == "USD" else e
             for e in _ENTRIES]

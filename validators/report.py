@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 from typing import Iterable
 
+from gsverse_format.textsafe import safe_line
 from gsverse_format.version import __version__
 
 from .issues import CATALOGUE, Finding, Severity
@@ -46,7 +47,9 @@ def _finding(f: Finding) -> str:
 
 
 def render_text(reports: Iterable[Report], *, quiet: bool = False) -> str:
-    """One summary line per file, then (unless ``quiet``) one line per finding."""
+    """One summary line per file, then (unless ``quiet``) one line per finding. Names and
+    values from the file are escaped (:func:`~gsverse_format.textsafe.safe_line`): control
+    characters become visible escapes and no line starts a CI workflow command."""
     lines = []
     for r in reports:
         counts = ", ".join([_plural(r.count(Severity.ERROR), "error"),
@@ -62,7 +65,7 @@ def render_text(reports: Iterable[Report], *, quiet: bool = False) -> str:
         lines.append(f"{r.path}: {counts}" + (f" ({'; '.join(extra)})" if extra else ""))
         if not quiet:
             lines.extend(_finding(f) for f in r.findings)
-    return "\n".join(lines) + ("\n" if lines else "")
+    return "\n".join(map(safe_line, lines)) + ("\n" if lines else "")
 
 
 def render_json(reports: Iterable[Report]) -> str:

@@ -90,11 +90,14 @@ def _errors(node: dict[str, Any], value: Any, pointer: str) -> list[tuple[str, s
     if "anyOf" in node and not any(not _errors(sub, value, pointer) for sub in node["anyOf"]):
         out.append((pointer, "matches none of the allowed alternatives"))
     if "not" in node and not _errors(node["not"], value, pointer):
-        banned = node["not"].get("required")
+        banned = node["not"].get("required") or [
+            key for sub in node["not"].get("anyOf", []) for key in sub.get("required", [])
+            if isinstance(value, dict) and key in value]
         out.append((pointer, f"must not have {', '.join(map(repr, banned))}" if banned
                     else "matches a forbidden form"))
     if "oneOf" in node:
-        results = [_errors(sub, value, pointer) for sub in node["oneOf"]]
+        results: list[list[tuple[str, str]]] = [_errors(sub, value, pointer)
+                                                 for sub in node["oneOf"]]
         passing = sum(1 for r in results if not r)
         if passing == 0:
             # Explain through the alternatives whose discriminating constants match (for
@@ -107,7 +110,10 @@ def _errors(node: dict[str, Any], value: Any, pointer: str) -> list[tuple[str, s
             for r in matched:
                 out += r
             if not matched and not out:
-                out.append((pointer, "matches none of the allowed alternatives"))
+                # no discriminator: explain through the alternative closest to passing (the
+                # first of those with the fewest violations)
+                closest = min(results, key=len)
+                out += closest
         elif passing > 1:
             out.append((pointer, "matches more than one alternative"))
     return out

@@ -15,10 +15,13 @@ import numpy as np
 from gsverse_format.version import __version__
 from gsverse_format.codes import Code
 from gsverse_format.vocabulary import EXTENSION, KHR
+from gsverse_format.io.gltf import GltfFormatError
+from gsverse_format.io.gltf.scene import check_instancing
 
 from .anchor import check_anchor
 from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
 from .context import CheckContext
+from .graph import check_mesh_indices, check_node_graph
 from .issues import Issues, Severity
 from .khr import check_splat_primitive
 from .usd import usd_mime_type, validate_usd
@@ -99,6 +102,13 @@ def _internal(issues: Issues, err: BaseException, pointer: str | None = None) ->
 
 def _check_document(ctx: Context, info: dict) -> None:
     doc = ctx.doc
+    nodes, cyclic = check_node_graph(ctx)
+    try:  # instancing beyond the limits, counted without expanding (not with a cycle)
+        if not cyclic:
+            check_instancing(doc)
+    except GltfFormatError as err:
+        if err.code == Code.SIZE_LIMIT_EXCEEDED:  # bad references: check_node_graph's
+            ctx.add_error(err)
     used = doc.get("extensionsUsed", [])
     if not isinstance(used, list):
         ctx.issues.add(Code.GLTF_SCHEMA_VIOLATION, "extensionsUsed must be an array",
@@ -114,6 +124,7 @@ def _check_document(ctx: Context, info: dict) -> None:
     khr_uses: list[str] = []
     anchor_uses: list[str] = []
     splats = anchored = total = 0
+    failed = False  # a bug in a primitive's checks: its splats are not counted
     for m, mesh in enumerate(ctx.array("meshes")):
         for p, prim in enumerate(mesh.get("primitives", [])):
             pointer = f"/meshes/{m}/primitives/{p}"
@@ -138,6 +149,7 @@ def _check_document(ctx: Context, info: dict) -> None:
                     check_anchor(ctx, data, nested[EXTENSION], apointer)
             except Exception as err:  # boundary of one primitive's checks: a bug there is
                 _internal(ctx.issues, err, pointer)  # INTERNAL_ERROR, the others still run
+                failed = True
     if not khr_uses:
         ctx.issues.add(Code.KHR_NO_SPLATS, f"the file has no {KHR} primitive")
     for name, uses in ((KHR, khr_uses), (EXTENSION, anchor_uses)):
@@ -150,6 +162,14 @@ def _check_document(ctx: Context, info: dict) -> None:
         else None
     if isinstance(generator, str):
         info["generator"] = generator
+    meshes = check_mesh_indices(ctx)
+    if not total and not failed:
+        held = (f"its {splats} {KHR} primitive(s) hold 0 splats" if splats
+                else f"no {KHR} primitive")
+        ctx.issues.add(Code.NO_SPLATS, f"the file holds no splats ({held}): checked its "
+                       f"container, buffers, {nodes} node(s) and the indices of {meshes} other "
+                       f"mesh primitive(s); materials, textures, animations and the rest of "
+                       f"the glTF are not checked (use the Khronos glTF validator for those)")
 
 
 def validate_file(path: str | os.PathLike, options: Options | None = None, *,
@@ -171,6 +191,12 @@ def validate_file(path: str | os.PathLike, options: Options | None = None, *,
             if not file_problem(spath, issues, USD_SUFFIXES):
                 report.mime_type = usd_mime_type(spath)
                 validate_usd(CheckContext(spath, options, issues), report.info)
+                if report.info.get("splatPrimitives") is not None and \
+                        not report.info.get("splats"):
+                    prims = report.info["splatPrimitives"]
+                    issues.add(Code.NO_SPLATS, "the stage holds no splats (" + (
+                        f"its {prims} splat prim(s) hold 0 splats" if prims else
+                        "no ParticleField3DGaussianSplat prim") + ")")
         except Exception as err:  # boundary: a bug is INTERNAL_ERROR with its type, not bad input
             _internal(issues, err)
         report.seconds = time.perf_counter() - start

@@ -16,6 +16,7 @@ from typing import cast
 import numpy as np
 
 from gsverse_format.codes import Code
+from gsverse_format.fit import assess_anchored_fit
 from gsverse_format.frames import EPS_DEGENERATE, degenerate_mask
 from gsverse_format.manifold import manifold_report
 from gsverse_format.model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors,
@@ -29,7 +30,7 @@ from .issues import TOLERANCES
 
 __all__ = ["RestPose", "AnchorMesh", "AnchorValues", "check_finite", "check_unit_quaternions",
            "check_nonnegative", "check_opacities", "check_triangles", "check_anchor_values",
-           "check_rest_pose"]
+           "check_fit", "check_rest_pose"]
 
 
 @dataclass
@@ -269,9 +270,29 @@ def check_anchor_values(ctx: CheckContext, values: AnchorValues, mesh: AnchorMes
                                                      rho=rho[:, 0]))
             if ok and face is not None and bary is not None:
                 anchors = GamesAnchors(face, bary, rho[:, 0])
+    if anchors is not None and rest is not None and mesh is not None and mesh.mesh is not None \
+            and len(rest.means) == len(anchors.face_index):
+        check_fit(ctx, rest, mesh.mesh, anchors.face_index)
     if anchors is not None and rest is not None and consistent and mesh is not None \
             and mesh.mesh is not None:
         check_rest_pose(ctx, rest, Anchoring(mesh.mesh, anchors), mesh.diagonal, mesh.largest)
+
+
+def check_fit(ctx: CheckContext, rest: RestPose, mesh: TriangleMesh,
+              face_index: np.ndarray) -> None:
+    """ANCHOR_MESH_MISFIT when the anchor mesh does not belong to the splats
+    (:func:`gsverse_format.fit.assess_anchored_fit`: the rest means, the mesh's box, each
+    splat's distance to its own anchor triangle; face indices already checked in range)."""
+    if not np.all(np.isfinite(rest.means)):
+        return
+    report, judged = assess_anchored_fit(rest.means, mesh.vertices, mesh.faces, face_index)
+    if report.ok:
+        return
+    n = len(rest.means)
+    subset = "" if judged == n else f"; judged on {judged} evenly spaced splats of {n}"
+    ctx.issues.add(Code.ANCHOR_MESH_MISFIT, f"the anchor mesh does not fit its splats: "
+                   f"{report.message()} (distances of the splats to their anchor triangles"
+                   f"{subset})", pointer=rest.mean_location)
 
 
 def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray,

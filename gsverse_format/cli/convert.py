@@ -3,8 +3,10 @@
 One file: ``gsverse-convert IN OUT``; many: ``gsverse-convert IN... --output-dir DIR``
 (:mod:`gsverse_format.batch`, local processes or ``--scheduler`` on Dask).
 
-Exit codes: 0 success, 1 bad input or failed conversion (in a batch: any asset failed), 2 usage
-error, 130 interrupted. Errors are one line on stderr (``gsverse-convert: error: <file>:
+Exit codes: 0 success, 1 bad input, an output the system refuses to write, or a failed
+conversion (in a batch: any asset failed), 2 usage error, 130 interrupted (143 SIGTERM, 129
+SIGHUP: handled like Ctrl-C, no output or temporary file left), 141 standard output closed by
+its reader (:mod:`gsverse_format.cli.boundary`). Errors are one line on stderr (``gsverse-convert: error: <file>:
 <cause>``), never a traceback.
 """
 from __future__ import annotations
@@ -17,12 +19,13 @@ import sys
 import tempfile
 from typing import IO
 
+from ..textsafe import escape, safe_line
 from ..version import __version__
 from ..converters import SOURCES
 from ..pipeline import ConvertOptions, ConvertSummary, convert
-from ..errors import GsverseError, UsageError
+from ..errors import GsverseError, OutputError, UsageError
 from ..progress import Progress
-from .boundary import run_command
+from .boundary import closed_stdout_error, parse_args, run_command
 
 PROG = "gsverse-convert"
 #: ``--to`` choices (output suffixes without the dot) and those that can go to standard output.
@@ -51,7 +54,8 @@ batch (--output-dir DIR):
   them per asset. Conversions run in --jobs local processes (default: the CPU count; one asset
   at a time each) with a progress bar over files; a failing asset is reported (one line on
   stderr, or in --json) and the others still convert. Exit status 0 when all converted,
-  1 when any failed, 2 for usage errors (nothing converted), 130 when interrupted.
+  1 when any failed, 2 for usage errors (nothing converted), 130 when interrupted (143 by
+  SIGTERM, 129 by SIGHUP).
   --json prints {output_dir, scheduler, jobs, total, ok, failed, skipped, interrupted,
   seconds, assets: [{input, output, status, error, summary}]} (counts, then one entry per
   asset in input order; status ok, failed, skipped or interrupted; error: one line; summary:
@@ -97,9 +101,17 @@ standard input and output ('-'):
   with --to glb or --to ply (USD and .gltf outputs are refused: they need a file name); the
   summary then goes to standard error. The primitive is named "stdin" for standard input.
 
+mesh fit:
+  each anchor mesh is checked against its splats: when few splats lie near it, or it is far
+  larger than they are, or a quarter or half turn would make their boxes fit, a "warning:"
+  line gives the numbers and the likely fix (an offset, other units, another frame), the
+  summary a note and --json a "fit" entry; --strict makes it an error (exit 1, nothing
+  written).
+
 quiet:
   -q prints no progress, no summary and no warning (also in worker and child processes);
-  errors are still printed.
+  errors are still printed (with --json also as {"error": ..., "input": ..., "exit": N} on
+  standard output).
 """
 
 
@@ -182,6 +194,15 @@ def build_parser() -> argparse.ArgumentParser:
                           "hull (glTF: a mesh marked extras.gsverse.collider, drawn by no node)")
     anc.add_argument("--plain", action="store_true",
                      help="format conversion only: write plain KHR splats without anchoring")
+    gl = p.add_argument_group("glTF output")
+    gl.add_argument("--anchors", choices=("explicit", "compact"), default="explicit",
+                    help="explicit: per-splat face, barycentrics, offset, rotation and scale "
+                         "(extension 1.1 layout, default); compact: per-face splat counts, and "
+                         "local anchors derived from the rest pose (extension 1.2: 1.1 readers "
+                         "see the rest pose only)")
+    gl.add_argument("--quantize", type=int, choices=(16, 8), metavar="BITS",
+                    help="store barycentrics, local rotations and (where no stored anchor "
+                         "depends on it) the rest rotation as normalized 16- or 8-bit integers")
     usd = p.add_argument_group("USD output")
     usd.add_argument("--bake-poses", metavar="FILE",
                      help="also store the splats remapped onto these anchor-mesh poses as USD "
@@ -190,7 +211,13 @@ def build_parser() -> argparse.ArgumentParser:
                           "time_codes_per_second, default 24), or a JSON list of "
                           "{\"time\": t, \"vertices\": [[x, y, z], ...]}; vertices in the frame "
                           "and vertex order of the written anchor mesh (see spec/usd.md)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.add_argument("--strict", action="store_true",
+                   help="fail (exit 1, nothing written) when an anchor mesh does not fit its "
+                        "splats (far from them, in other units or another frame), instead of "
+                        "warning")
+    p.add_argument("--json", action="store_true",
+                   help="print the summary as JSON on stdout (an error too: {\"error\": ..., "
+                        "\"input\": ..., \"exit\": N})")
     p.add_argument("-q", "--quiet", action="store_true",
                    help="no progress bar, no summary and no warnings")
     p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
@@ -210,7 +237,8 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
                           reconstruct_faces=args.reconstruct_faces,
                           pt_path=args.pt_path, k=args.k,
                           legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
-                          bake_poses=args.bake_poses)
+                          bake_poses=args.bake_poses, anchors=args.anchors,
+                          quantize=args.quantize, strict=args.strict)
 
 
 def _sniff_stdin(head: bytes) -> str:
@@ -235,13 +263,19 @@ def _spool_stdin(folder: str, stream: IO[bytes]) -> str:
     return path
 
 
-def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+def _check_arguments(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """What the parser alone cannot check: one input and one output without a batch."""
+    if args.output_dir is not None:
+        return
     for flag, value in (("--jobs", args.jobs), ("--scheduler", args.scheduler),
                         ("--skip-existing", args.skip_existing or None)):
         if value is not None:
             parser.error(f"{flag} needs --output-dir DIR (a batch)")
     if len(args.paths) != 2:
         parser.error("give IN OUT (one file), or IN... --output-dir DIR (a batch)")
+
+
+def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
     output = args.paths[1]
     if output == "-":
         if args.to is None:
@@ -250,12 +284,17 @@ def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
         if args.to not in STDOUT_FORMATS:
             raise UsageError(f"{args.to} output cannot go to standard output (it needs a file "
                              f"name); use --to {' or --to '.join(STDOUT_FORMATS)}, or a file", "-")
+        closed = closed_stdout_error()
+        if closed is not None:
+            raise closed
         if sys.stdout.isatty():
             raise UsageError("refusing to write binary data to a terminal; redirect standard "
                              "output", "-")
     else:
         if args.to is not None and os.path.splitext(output)[1].lower() != "." + args.to:
             raise UsageError(f"--to {args.to} does not match the output's suffix", output)
+        if os.path.isdir(output):
+            raise OutputError("is a folder; give a file name for the output", output)
         if os.path.lexists(output) and not args.overwrite:
             raise UsageError("output exists; use -w/--overwrite to replace it", output)
 
@@ -303,20 +342,20 @@ def _batch(args: argparse.Namespace, progress: Progress) -> int:
                        progress=progress)
     for asset in report.assets:
         if asset.status == "failed":
-            print(f"{PROG}: error: {asset.error}", file=sys.stderr)
+            print(f"{PROG}: error: {escape(asset.error)}", file=sys.stderr)
     if report.interrupted:
         print(f"{PROG}: interrupted; {report.count('ok')} assets converted, "
               f"{report.count('interrupted')} not written", file=sys.stderr)
     if args.json:
         print(json.dumps(report.as_dict(), indent=2))
     elif not args.quiet:
-        print("\n".join(report.lines()))
+        print("\n".join(map(safe_line, report.lines())))
     return report.exit_status
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv, lambda args: _check_arguments(args, parser))
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
 
     def work() -> int:
@@ -326,11 +365,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             print(json.dumps(summary.as_dict(), indent=2), file=out)
         elif not args.quiet:
-            print("\n".join(summary.lines()), file=out)
+            print("\n".join(map(safe_line, summary.lines())), file=out)
         return 0
 
     return run_command(PROG, args.paths[0], progress, work, quiet=args.quiet,
-                       interrupted="interrupted; no output written")
+                       interrupted="interrupted; no output written", json_errors=args.json)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -16,7 +16,8 @@ primitives stay. Outputs: one file per time in DIR (``<asset>_fNNNN.ply`` as 3DG
 ``--vat`` an EXR vertex-animation texture of the anchor mesh over the sampled times.
 
 Exit codes: 0 success, 1 bad input, 2 usage error (existing outputs without ``-w``), 70
-internal error, 130 interrupted. Errors are one line on stderr naming the file and the cause.
+internal error, 130 interrupted (143 SIGTERM, 129 SIGHUP; see :mod:`.boundary`). Errors are
+one line on stderr naming the file and the cause.
 """
 from __future__ import annotations
 
@@ -31,9 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from ..textsafe import safe_line
 from ..errors import FormatError, UsageError
 from ..progress import Progress
-from .boundary import run_command
+from .boundary import parse_args, run_command
 from ..version import __version__
 
 PROG = "gsverse-pose"
@@ -191,7 +193,8 @@ def _posed_asset(asset, posed_meshes: dict[int, np.ndarray]):
 
 
 def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
-    from ..api import read, write
+    from ..api import write
+    from ..pipeline import read_input
     from ..poses import open_source, parse_deformations
     from ..poses.gltf_source import open_gltf_source
 
@@ -208,7 +211,7 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     asset_path = args.asset
     if not os.path.isfile(asset_path):
         raise FormatError("file not found", asset_path)
-    asset = read(asset_path)
+    asset = read_input(asset_path)  # USD in a child process: a crash there is bad input
     meshes = {id(p.anchoring.mesh): p.anchoring.mesh for p in asset.anchored
               if p.anchoring is not None}
     if not meshes:
@@ -319,7 +322,7 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
 
     def work() -> int:
@@ -327,10 +330,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.json:
             print(json.dumps(summary.as_dict(), indent=2))
         elif not args.quiet:
-            print("\n".join(summary.lines()))
+            print("\n".join(map(safe_line, summary.lines())))
         return 0
 
-    return run_command(PROG, args.asset, progress, work, quiet=args.quiet)
+    return run_command(PROG, args.asset, progress, work, quiet=args.quiet,
+                       json_errors=args.json)
 
 
 if __name__ == "__main__":  # pragma: no cover

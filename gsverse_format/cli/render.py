@@ -1,8 +1,8 @@
 """``gsverse-render``: pictures of an asset at rest or posed (PNG or OpenEXR).
 
 Exit codes: 0 success, 1 bad input (unreadable asset or pose file), 2 usage error (bad options,
-an existing output without -w), 70 internal error, 130 interrupted. Errors are one line on
-stderr (``gsverse-render: error: <file>: <cause>``).
+an existing output without -w), 70 internal error, 130 interrupted (143 SIGTERM, 129 SIGHUP; see
+:mod:`.boundary`). Errors are one line on stderr (``gsverse-render: error: <file>: <cause>``).
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import FormatError, GsverseError, UsageError
 from ..progress import Progress
-from .boundary import run_command
+from .boundary import parse_args, run_command
 from ..version import __version__
 
 PROG = "gsverse-render"
@@ -157,7 +157,7 @@ def _outputs(args, frames: int) -> list[str]:
 
 
 def run(args, progress: Progress) -> dict:
-    from ..api import read
+    from ..pipeline import read_input
     from ..render.camera import CameraSpecError, parse_camera, turntable
     from ..render.output import write_image, write_png
     from ..render.scene import auto_camera, gaussians, render_asset, sheet
@@ -175,7 +175,7 @@ def run(args, progress: Progress) -> dict:
     paths = _outputs(args, frames)
     progress.stage("reading")
     try:
-        asset = read(args.asset)
+        asset = read_input(args.asset)  # USD in a child process
     except GsverseError as exc:
         raise (exc if exc.path else exc.with_path(args.asset)) from None
     except OSError as exc:
@@ -210,7 +210,7 @@ def run(args, progress: Progress) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = parse_args(build_parser(), argv)
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
 
     def work() -> int:
@@ -223,7 +223,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{summary['splats']} splats, {summary['pose']}, {summary['seconds']:.2f} s")
         return 0
 
-    return run_command(PROG, args.asset, progress, work, quiet=args.quiet)
+    return run_command(PROG, args.asset, progress, work, quiet=args.quiet,
+                       json_errors=args.json)
 
 
 if __name__ == "__main__":  # pragma: no cover

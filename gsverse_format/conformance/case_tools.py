@@ -55,6 +55,8 @@ class RemapCase:
     sh: np.ndarray
     poses: list[Pose]
     quantize: dict | None = None
+    #: how the writer stores the anchors: ``explicit`` or ``compact`` (version 1.2)
+    encoding: str = "explicit"
     skinned_asset: bytes | None = None
     #: codes ``gsverse-validate`` reports for the asset although a plugin must remap it
     validator_codes: list[str] = field(default_factory=list)

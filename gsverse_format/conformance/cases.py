@@ -35,6 +35,7 @@ from ..model import Anchors, TriangleMesh
 from .case_tools import (LAWS, TUBE, Pose, RemapCase, bend, case_rng, faces_from_counts,
                          games_anchors, law_id, law_tags, local_anchors, make_anchors, make_case,
                          random_barycentrics, rest_pose, shake, stretch, taper, tube_mesh, twist)
+from .cases_compact import compact_cases
 from .cases_encodings import encoding_cases
 from .cases_extreme import extreme_cases
 from .cases_rules import rule_cases
@@ -255,4 +256,5 @@ def _face_index_cases() -> list[RemapCase]:
 def remap_cases() -> list[RemapCase]:
     """All remap cases, in suite order."""
     return (_source_cases() + _per_face_cases() + _vertex_edge_cases() + _quantized_cases()
-            + _face_index_cases() + extreme_cases() + rule_cases() + encoding_cases())
+            + _face_index_cases() + extreme_cases() + rule_cases() + encoding_cases()
+            + compact_cases())

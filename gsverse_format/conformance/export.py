@@ -251,8 +251,11 @@ def _initial_asset(case: case_defs.RemapCase) -> SplatAsset:
 def _consistent_asset(case: case_defs.RemapCase, path: Path) -> SplatPrimitive:
     """Write the asset; if quantization changed the anchors, rewrite the stored rest pose from
     the anchors as stored (so that the file is rest-consistent); return it as read back."""
-    data = gltf_to_bytes(asset_to_gltf(_initial_asset(case), quantize=case.quantize))
+    data = gltf_to_bytes(asset_to_gltf(_initial_asset(case), quantize=case.quantize,
+                                       anchors=case.encoding))
     _write(path, data)
+    # derived anchors come from the stored rest pose: consistent by construction
+    derived = "barycentrics" not in _splat_accessors(unpack_glb(data)[0])[1]
     prim = read_asset(str(path)).primitives[0]
     r = remap(prim.anchoring)
     means = r.means.astype(np.float32)
@@ -261,7 +264,7 @@ def _consistent_asset(case: case_defs.RemapCase, path: Path) -> SplatPrimitive:
     same = np.array_equal(means, prim.splats.means) and np.array_equal(rots, prim.splats.rotations)
     if games:
         same = same and np.array_equal(r.scales.astype(np.float32), prim.splats.scales)
-    if not same:
+    if not same and not derived:
         doc, blob = unpack_glb(data)
         attrs, ext = _splat_accessors(doc)
         blob = patch_accessor(doc, blob, attrs["POSITION"], means)
@@ -292,7 +295,10 @@ def _anchor_summary(path: Path) -> dict:
     out["face_count"] = (doc["accessors"][anchor_prim["indices"]]["count"] if indexed
                          else out["vertex_count"]) // 3
     types = {}
-    for key in ("faceIndex", "barycentrics", "normalOffset", "localRotation", "localScale", "rho"):
+    out["face_encoding"] = "faceCounts" if "faceCounts" in ext else "faceIndex"
+    out["derived"] = ext["profile"] == "local" and "barycentrics" not in ext
+    for key in ("faceIndex", "faceCounts", "barycentrics", "normalOffset", "localRotation",
+                "localScale", "rho"):
         if key in ext:
             acc = doc["accessors"][ext[key]]
             types[key] = _CTYPE[acc["componentType"]] + (" normalized" if acc.get("normalized")
@@ -388,7 +394,8 @@ def _export_invalid(case: invalid_defs.InvalidCase, case_dir: Path, cache: dict,
         "suite_version": SUITE_VERSION,
         "kind": "invalid",
         "description": case.description,
-        "tags": ["invalid"] + case.tags + [f"profile:{case.base}"],
+        "tags": ["invalid"] + case.tags + [f"profile:{case.base.split('-')[0]}"]
+        + (["encoding:compact"] if case.base.endswith("-compact") else []),
         "expect": "refuse",
         "rule": case.rule,
         "validator_code": case.validator_code,

@@ -30,7 +30,7 @@ from ..io.gltf import read_gltf
 from ..model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
 from .. import remap_reference as reference
 from .glb import unpack_glb
-from .minimal_reader import Raw, Refused, dequantize, read_anchored_glb
+from .minimal_reader import Raw, Refused, dequantize, derive_local, face_index, read_anchored_glb
 
 __all__ = ["Plugin", "Refused", "run_plugin", "write_array", "ReferencePlugin", "FastPlugin",
            "RawReferencePlugin", "cov6", "suite_cases", "read_asset"]
@@ -280,12 +280,18 @@ class RawReferencePlugin:
         a = read_anchored_glb(asset_path)
         self.raw = a
         mesh = TriangleMesh(a.anchor_vertices, a.anchor_faces)
-        face = a.anchors["faceIndex"].values[:, 0].astype(np.uint32)
-        bary = self.deq(a.anchors["barycentrics"])
+        face = face_index(a)
         anchors: GamesAnchors | LocalAnchors
-        if a.profile == "games":
+        if a.derived:                 # version 1.2: derived from the rest pose
+            d = derive_local(a)
+            anchors = LocalAnchors(face, d["barycentrics"], d["normalOffset"],
+                                   d["localRotation"], d["localScale"],
+                                   "rigid" if a.deformation == "rigid" else "affine")
+        elif a.profile == "games":
+            bary = self.deq(a.anchors["barycentrics"])
             anchors = GamesAnchors(face, bary, self.deq(a.anchors["rho"])[:, 0])
         else:
+            bary = self.deq(a.anchors["barycentrics"])
             anchors = LocalAnchors(face, bary, self.deq(a.anchors["normalOffset"])[:, 0],
                                    self._quat(a.anchors["localRotation"]),
                                    self.deq(a.anchors["localScale"]),

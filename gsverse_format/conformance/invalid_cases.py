@@ -207,6 +207,70 @@ def _m_anchor_mesh_two_nodes(doc, blob):
     return doc, blob
 
 
+def _m_counts_and_index(doc, blob):
+    e = anchor_extension(doc)
+    counts = accessor_bytes(doc, blob, e["faceCounts"]).astype(np.int64).ravel()
+    e["faceIndex"], blob = append_accessor(doc, blob, faces_from_counts(counts), UNSIGNED_SHORT,
+                                           "SCALAR")
+    return doc, blob
+
+
+def _m_counts_length(doc, blob):
+    e = anchor_extension(doc)
+    counts = accessor_bytes(doc, blob, e["faceCounts"]).astype(np.int64).ravel()
+    # one count fewer than triangles, the last face's splats moved to the first face
+    counts[0] += counts[-1]
+    e["faceCounts"], blob = append_accessor(doc, blob, counts[:-1], UNSIGNED_SHORT, "SCALAR")
+    return doc, blob
+
+
+def _m_counts_sum(doc, blob):
+    e = anchor_extension(doc)
+    counts = accessor_bytes(doc, blob, e["faceCounts"]).copy()
+    counts.ravel()[int(np.argmax(counts.ravel()))] += 1
+    return doc, patch_accessor(doc, blob, e["faceCounts"], counts)
+
+
+def _m_counts_float(doc, blob):
+    e = anchor_extension(doc)
+    counts = accessor_bytes(doc, blob, e["faceCounts"]).astype(np.float32)
+    e["faceCounts"], blob = append_accessor(doc, blob, counts, FLOAT, "SCALAR")
+    return doc, blob
+
+
+def _m_derived_with_offset(doc, blob):
+    e = anchor_extension(doc)
+    count = doc["accessors"][anchored_primitive(doc)["attributes"]["POSITION"]]["count"]
+    e["normalOffset"], blob = append_accessor(doc, blob, np.zeros(count), FLOAT, "SCALAR")
+    return doc, blob
+
+
+def _m_derived_on_degenerate(doc, blob):
+    """Collapse corner 2 of the first face holding splats onto its corner 0 (rest mesh)."""
+    e = anchor_extension(doc)
+    counts = accessor_bytes(doc, blob, e["faceCounts"]).astype(np.int64).ravel()
+    f = int(np.flatnonzero(counts)[0])
+    prim = anchor_primitive(doc)
+    idx = accessor_bytes(doc, blob, prim["indices"]).astype(np.int64).ravel()
+    pos = accessor_bytes(doc, blob, prim["attributes"]["POSITION"]).copy()
+    pos[idx[3 * f + 2]] = pos[idx[3 * f]]
+    return doc, patch_accessor(doc, blob, prim["attributes"]["POSITION"], pos)
+
+
+def _m_rest_rotation_zero(doc, blob):
+    index = anchored_primitive(doc)["attributes"]["KHR_gaussian_splatting:ROTATION"]
+    q = accessor_bytes(doc, blob, index)
+    q[len(q) // 2] = 0
+    return doc, patch_accessor(doc, blob, index, q)
+
+
+def _m_rest_scale_negative(doc, blob):
+    index = anchored_primitive(doc)["attributes"]["KHR_gaussian_splatting:SCALE"]
+    s = accessor_bytes(doc, blob, index)
+    s[len(s) // 3, 2] = -s[len(s) // 3, 2]
+    return doc, patch_accessor(doc, blob, index, s)
+
+
 def invalid_cases() -> list[InvalidCase]:
     """Assets a plugin must refuse, each breaking one rule of ``spec/README.md``."""
     spec = "spec/README.md"
@@ -339,15 +403,59 @@ def invalid_cases() -> list[InvalidCase]:
                     "by more than one node (which instance's skin or morph weights would drive "
                     "the splats is ambiguous); readers MUST refuse such an asset", "games",
                     _m_anchor_mesh_two_nodes, "ANCHOR_MESH_MULTIPLE_INSTANCES"),
+        InvalidCase("invalid-face-index-and-face-counts", "A compact local primitive carries "
+                    "both faceCounts and a faceIndex accessor.", f"{spec} §Properties: exactly "
+                    "one of faceIndex and faceCounts MUST be present", "local-compact",
+                    _m_counts_and_index, "ANCHOR_SCHEMA_VIOLATION"),
+        InvalidCase("invalid-no-face-index-nor-counts", "A local primitive without faceIndex "
+                    "and without faceCounts.", f"{spec} §Properties: exactly one of faceIndex "
+                    "and faceCounts MUST be present", "local", _m_delete("faceIndex"),
+                    "ANCHOR_SCHEMA_VIOLATION"),
+        InvalidCase("invalid-face-counts-count", "faceCounts has one element fewer than the "
+                    "anchor mesh has triangles (its sum still equals the splat count).",
+                    f"{spec} §Properties: the count of faceCounts MUST equal the number of "
+                    "triangles", "local-compact", _m_counts_length,
+                    "ANCHOR_FACE_COUNTS_COUNT"),
+        InvalidCase("invalid-face-counts-sum", "faceCounts sums to the splat count plus one.",
+                    f"{spec} §Properties: the faceCounts values MUST sum to the POSITION count",
+                    "games-compact", _m_counts_sum, "ANCHOR_FACE_COUNTS_SUM"),
+        InvalidCase("invalid-face-counts-float", "faceCounts stored as FLOAT.", f"{spec} "
+                    "§Accessor component types: faceCounts is UNSIGNED_BYTE, UNSIGNED_SHORT or "
+                    "UNSIGNED_INT, not normalized", "local-compact", _m_counts_float,
+                    "ANCHOR_ACCESSOR_FORMAT"),
+        InvalidCase("invalid-derived-with-normal-offset", "A local primitive without "
+                    "barycentrics (derived anchors) carries a normalOffset.", f"{spec} "
+                    "§Properties: without barycentrics, normalOffset, localRotation and "
+                    "localScale MUST be absent", "local-compact", _m_derived_with_offset,
+                    "ANCHOR_SCHEMA_VIOLATION"),
+        InvalidCase("invalid-derived-on-degenerate-face", "Derived local anchors: a face that "
+                    "holds splats is degenerate at rest (its corner 2 moved onto corner 0).",
+                    f"{spec} §Derived local anchors: a derived splat on a face degenerate at "
+                    "rest is invalid; readers MUST refuse the asset", "local-compact",
+                    _m_derived_on_degenerate, "ANCHOR_DERIVED_ON_DEGENERATE"),
+        InvalidCase("invalid-derived-zero-rest-rotation", "Derived local anchors: one splat's "
+                    "rest KHR_gaussian_splatting:ROTATION is (0, 0, 0, 0), so its derived "
+                    "localRotation has length zero.", f"{spec} §Derived local anchors: derived "
+                    "anchors are used exactly as stored ones, and a localRotation of length zero "
+                    "makes the asset invalid", "local-compact", _m_rest_rotation_zero,
+                    "ROTATION_NOT_UNIT"),
+        InvalidCase("invalid-derived-negative-rest-scale", "Derived local anchors: one "
+                    "component of one splat's rest KHR_gaussian_splatting:SCALE (its derived "
+                    "localScale) is negative.", f"{spec} §Derived local anchors: derived anchors "
+                    "are used exactly as stored ones, and a negative localScale component makes "
+                    "the asset invalid", "local-compact", _m_rest_scale_negative,
+                    "SCALE_NEGATIVE"),
     ]
 
 
 def invalid_base_case(kind: str) -> RemapCase:
-    """The small valid asset an invalid case is derived from (``local`` or ``games``)."""
+    """The small valid asset an invalid case is derived from (``local`` or ``games``, written
+    with explicit anchors; ``local-compact`` or ``games-compact``: with compact ones)."""
     rng = case_rng(f"invalid-base-{kind}")
+    kind, _, encoding = kind.partition("-")
     mesh = tube_mesh()
     face = faces_from_counts(np.arange(mesh.face_count) % 3 == 0)
     law = "affine" if kind == "local" else None
     anchors = make_anchors(kind, law, mesh, face, random_barycentrics(rng, len(face)), rng)
     return make_case(f"invalid-base-{kind}", "base of the invalid cases", [], mesh, anchors,
-                     [rest_pose(mesh)], rng, 0)
+                     [rest_pose(mesh)], rng, 0, encoding=encoding or "explicit")

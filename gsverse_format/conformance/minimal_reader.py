@@ -12,7 +12,11 @@ the order it does it, so that it can be ported line by line to C#, C++ or GDScri
    required accessors, allowed component types, counts, face index range, finite anchor data
    and rest pose, no zero ``localRotation``, no negative ``localScale``) and refuse the asset
    otherwise (:class:`Refused`);
-5. dequantize (:func:`dequantize`) and renormalize quantized quaternions.
+5. dequantize (:func:`dequantize`) and renormalize quantized quaternions;
+6. (version 1.2) take the face of each splat from ``faceCounts`` when the asset stores counts
+   instead of ``faceIndex`` (:func:`face_index`), and derive the ``local`` anchors from the
+   rest pose when the asset stores none (:func:`derive_local`), refusing splats on faces
+   degenerate at rest.
 
 Everything is returned raw (stored dtype, component type, normalized flag), so that an
 implementation under test can do its own dequantization. Only GLB files with their data in the
@@ -30,7 +34,7 @@ from .glb import (BYTE, COMPONENT_DTYPES, FLOAT, SHORT, TYPE_COMPONENTS, UNSIGNE
                   UNSIGNED_INT, UNSIGNED_SHORT)
 
 __all__ = ["Refused", "Raw", "RawAsset", "read_anchored_glb", "dequantize", "ANCHOR_ACCESSORS",
-           "accessor_allowed"]
+           "accessor_allowed", "face_index", "derive_local"]
 
 KHR = "KHR_gaussian_splatting"
 ANCHOR = "GSVERSE_gaussian_splatting_mesh_anchor"
@@ -48,9 +52,15 @@ ANCHOR_ACCESSORS: dict[str, tuple[str, frozenset]] = {
                                       (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, False),
                                       (UNSIGNED_SHORT, True)})),
     "rho": ("SCALAR", frozenset({(FLOAT, False)})),
+    # version 1.2: one count per triangle instead of faceIndex
+    "faceCounts": ("SCALAR", frozenset({(UNSIGNED_BYTE, False), (UNSIGNED_SHORT, False),
+                                        (UNSIGNED_INT, False)})),
 }
-_REQUIRED = {"local": ("faceIndex", "barycentrics", "normalOffset", "localRotation", "localScale"),
-             "games": ("faceIndex", "barycentrics", "rho")}
+_REQUIRED = {"local": ("barycentrics", "normalOffset", "localRotation", "localScale"),
+             "games": ("barycentrics", "rho")}
+#: version 1.2: a local primitive without barycentrics stores none of these (derived)
+_DERIVED = ("barycentrics", "normalOffset", "localRotation", "localScale")
+_EPS_DEG = 1e-6
 
 
 class Refused(Exception):
@@ -86,6 +96,10 @@ class RawAsset:
     profile: str
     deformation: str | None
     anchors: dict[str, Raw] = field(default_factory=dict)
+    #: version 1.2: ``faceCounts`` (then ``anchors`` has no ``faceIndex``)
+    face_counts: Raw | None = None
+    #: version 1.2: a ``local`` primitive without stored anchors (see :func:`derive_local`)
+    derived: bool = False
 
     @property
     def count(self) -> int:
@@ -267,26 +281,58 @@ def read_anchored_glb(path) -> RawAsset:
         deformation = ext.get("deformation", "affine")
         if deformation not in ("affine", "rigid"):
             raise Refused(f"unknown deformation {deformation!r}")
+    if ("faceIndex" in ext) == ("faceCounts" in ext):
+        raise Refused("exactly one of faceIndex and faceCounts must be present")
+    derived = profile == "local" and "barycentrics" not in ext
+    if derived and any(k in ext for k in _DERIVED):
+        raise Refused("without barycentrics, normalOffset, localRotation and localScale must "
+                      "be absent")
     anchors: dict[str, Raw] = {}
-    for prop in _REQUIRED[profile]:
+    counts = None
+    face_prop = "faceIndex" if "faceIndex" in ext else "faceCounts"
+    for prop in (face_prop,) + (() if derived else _REQUIRED[profile]):
         if prop not in ext:
             raise Refused(f"{profile} profile requires {prop}")
-        gtype, _ = ANCHOR_ACCESSORS[prop]
         raw = d.accessor(ext[prop], prop, tuple(TYPE_COMPONENTS))
         acc = doc["accessors"][ext[prop]]
         if not accessor_allowed(prop, acc["type"], raw.component_type, raw.normalized):
             raise Refused(f"{prop}: {acc['type']} componentType {raw.component_type}"
                           f"{' normalized' if raw.normalized else ''} is not allowed")
+        if prop == "faceCounts":
+            if raw.values.shape[0] != len(faces):
+                raise Refused(f"faceCounts has {raw.values.shape[0]} elements, the anchor mesh "
+                              f"has {len(faces)} triangles")
+            if int(raw.values[:, 0].astype(np.int64).sum()) != n:
+                raise Refused(f"faceCounts does not sum to the {n} splats")
+            counts = raw
+            continue
         if raw.values.shape[0] != n:
             raise Refused(f"{prop} has {raw.values.shape[0]} elements, POSITION has {n}")
         anchors[prop] = raw
-    face = anchors["faceIndex"].values[:, 0]
+    face = anchors["faceIndex"].values[:, 0] if counts is None else \
+        np.repeat(np.arange(len(faces)), counts.values[:, 0].astype(np.int64))
     if face.size and int(face.max()) >= len(faces):
         raise Refused(f"faceIndex {int(face.max())} out of range for {len(faces)} triangles")
     for name, raw in [("anchor POSITION", apos)] + list(anchors.items()):
         if raw.component_type == FLOAT and not np.all(np.isfinite(raw.values)):
             raise Refused(f"{name} holds NaN or infinity")
-    if profile == "local":
+    if derived:
+        tri = apos.values.astype(np.float64)[faces[face].astype(np.int64)]
+        bad = np.flatnonzero(~_regular(tri))
+        if bad.size:
+            raise Refused(f"splat {int(bad[0])} has derived anchors on face {int(face[bad[0]])}, "
+                          f"which is degenerate at rest")
+        # derived anchors are used as stored ones: q_l from a zero ROTATION has length zero,
+        # and s_l = SCALE must be >= 0
+        zero = np.flatnonzero(~np.any(dequantize(rotations) != 0, axis=1))
+        if zero.size:
+            raise Refused(f"rest ROTATION of splat {int(zero[0])} (derived localRotation) has "
+                          f"length zero")
+        negative = np.flatnonzero(np.any(dequantize(scales) < 0, axis=1))
+        if negative.size:
+            raise Refused(f"rest SCALE of splat {int(negative[0])} (derived localScale) is "
+                          f"negative")
+    elif profile == "local":
         zero = np.flatnonzero(~np.any(anchors["localRotation"].values != 0, axis=1))
         if zero.size:
             raise Refused(f"localRotation of splat {int(zero[0])} has length zero")
@@ -294,4 +340,79 @@ def read_anchored_glb(path) -> RawAsset:
         if negative.size:
             raise Refused(f"localScale of splat {int(negative[0])} is negative")
     return RawAsset(positions, rotations, scales, opacities, sh,
-                    apos.values.astype(np.float32), faces, profile, deformation, anchors)
+                    apos.values.astype(np.float32), faces, profile, deformation, anchors,
+                    counts, derived)
+
+
+def _regular(tri: np.ndarray) -> np.ndarray:
+    """(F,) whether triangles (F, 3, 3) are regular: a > eps_deg l^2 (spec Triangle frames)."""
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    e3 = e2 - e1
+    a = np.linalg.norm(np.cross(e1, e2), axis=1)
+    longest2 = np.max(np.stack([(e * e).sum(axis=1) for e in (e1, e2, e3)]), axis=0)
+    return a > _EPS_DEG * longest2
+
+
+def face_index(asset: RawAsset) -> np.ndarray:
+    """(N,) uint32 face of each splat: ``faceIndex``, or from ``faceCounts`` (splat i is on
+    face f with S_f <= i < S_{f+1}, S_f the sum of the counts before f)."""
+    if asset.face_counts is None:
+        return asset.anchors["faceIndex"].values[:, 0].astype(np.uint32)
+    counts = asset.face_counts.values[:, 0].astype(np.int64)
+    return np.repeat(np.arange(len(counts), dtype=np.uint32), counts)
+
+
+def _quat_from_matrix(m: np.ndarray) -> np.ndarray:
+    """Shepperd's method, (F, 3, 3) -> (F, 4) xyzw."""
+    out = np.empty((len(m), 4))
+    tr = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
+    cand = np.stack([1 + 2 * m[:, 0, 0] - tr, 1 + 2 * m[:, 1, 1] - tr, 1 + 2 * m[:, 2, 2] - tr,
+                     1 + tr], axis=1)
+    k = np.argmax(cand, axis=1)
+    s = 2 * np.sqrt(np.maximum(cand[np.arange(len(m)), k], 0.0))
+    for i in range(len(m)):
+        r, si = m[i], s[i]
+        if k[i] == 3:
+            q = [(r[2, 1] - r[1, 2]) / si, (r[0, 2] - r[2, 0]) / si, (r[1, 0] - r[0, 1]) / si, si / 4]
+        elif k[i] == 0:
+            q = [si / 4, (r[0, 1] + r[1, 0]) / si, (r[0, 2] + r[2, 0]) / si, (r[2, 1] - r[1, 2]) / si]
+        elif k[i] == 1:
+            q = [(r[0, 1] + r[1, 0]) / si, si / 4, (r[1, 2] + r[2, 1]) / si, (r[0, 2] - r[2, 0]) / si]
+        else:
+            q = [(r[0, 2] + r[2, 0]) / si, (r[1, 2] + r[2, 1]) / si, si / 4, (r[1, 0] - r[0, 1]) / si]
+        out[i] = q
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
+
+
+def derive_local(asset: RawAsset) -> dict[str, np.ndarray]:
+    """The ``local`` anchors of a compact asset (version 1.2), float64: ``barycentrics``
+    (N, 2), ``normalOffset`` (N,), ``localRotation`` (N, 4) and ``localScale`` (N, 3), from
+    the rest pose (POSITION, ROTATION dequantized and normalized, SCALE dequantized) and the
+    rest triangle of each splat (regular: :func:`read_anchored_glb` refused the others):
+    (x, y, z) = R_r^T (mu - v0), b2 = y / C_r[1,1], b1 = (x - C_r[0,1] b2) / C_r[0,0], d = z,
+    q_l = conj(q_r) (x) q."""
+    face = face_index(asset).astype(np.int64)
+    v = asset.anchor_vertices.astype(np.float64)[asset.anchor_faces.astype(np.int64)[face]]
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    cross = np.cross(e1, e2)
+    a = np.linalg.norm(cross, axis=1)
+    l1 = np.linalg.norm(e1, axis=1)
+    t = e1 / l1[:, None]
+    n = cross / a[:, None]
+    b = np.cross(n, t)
+    rel = dequantize(asset.positions) - v[:, 0]
+    x, y, z = ((rel * axis).sum(axis=1) for axis in (t, b, n))
+    c01 = (e2 * t).sum(axis=1)
+    b2 = y / (a / l1)
+    b1 = (x - c01 * b2) / l1
+    q = dequantize(asset.rotations)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    qr = _quat_from_matrix(np.stack([t, b, n], axis=-1))
+    ax, ay, az, aw = -qr[:, 0], -qr[:, 1], -qr[:, 2], qr[:, 3]      # conj(q_r)
+    bx, by, bz, bw = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    ql = np.stack([aw * bx + ax * bw + ay * bz - az * by,
+                   aw * by - ax * bz + ay * bw + az * bx,
+                   aw * bz + ax * by - ay * bx + az * bw,
+                   aw * bw - ax * bx - ay * by - az * bz], axis=1)
+    return {"barycentrics": np.stack([b1, b2], axis=1), "normalOffset": z,
+            "localRotation": ql, "localScale": dequantize(asset.scales)}

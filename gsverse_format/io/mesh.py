@@ -4,21 +4,53 @@ Vertex and face order are kept as the file has them: converters that bind by fac
 (SuGaR, GaMeS) depend on it. PLY meshes are read by the project's own strict PLY reader
 (:func:`gsverse_format.io.ply.read_ply_mesh`; polygons are fan-triangulated in file order),
 glTF scenes by its hardened glTF reader (flattened with their node transforms applied, URIs
-never followed outside the asset's folder), OBJ, STL and OFF by trimesh (``process=False``;
-polygons fan-triangulated by trimesh).
+never followed outside the asset's folder, instancing bounded), OBJ, STL and OFF by trimesh
+(``process=False``; polygons fan-triangulated by trimesh).
+
+trimesh is handed the file's bytes, never its path: it has no way to open another file. OBJ
+material libraries (``mtllib``, which may name any path, ``../..`` or absolute) are removed
+from those bytes first; an anchor mesh needs no material, so no ``.mtl`` or texture is ever
+read, inside the folder or outside it. Files larger than
+:data:`~gsverse_format.limits.MAX_MESH_FILE_BYTES` are refused before they are read.
 """
 from __future__ import annotations
 
+import io
 import os
+import re
 import struct
 import warnings
 
 import numpy as np
 
 from ..errors import FormatError, UsageError
+from ..limits import MAX_MESH_FILE_BYTES
 from ..model import TriangleMesh
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
+
+#: An OBJ ``mtllib`` statement (a whole line; continuation lines joined first).
+_MTLLIB = re.compile(rb"^[ \t]*mtllib\b.*$", re.MULTILINE)
+
+
+def strip_material_libraries(data: bytes) -> bytes:
+    """OBJ bytes without their ``mtllib`` statements (materials are never read)."""
+    data = data.replace(b"\\\r\n", b"").replace(b"\\\n", b"")
+    return _MTLLIB.sub(b"", data)
+
+
+def _file_bytes(path: str) -> bytes:
+    """The bytes of ``path``, refused before reading beyond the mesh file limit."""
+    size = os.path.getsize(path)
+    if size > MAX_MESH_FILE_BYTES:
+        raise FormatError(f"mesh file is {size} bytes, larger than the limit of "
+                          f"{MAX_MESH_FILE_BYTES} bytes", path)
+    with open(path, "rb") as handle:
+        data = handle.read(MAX_MESH_FILE_BYTES + 1)
+    if len(data) > MAX_MESH_FILE_BYTES:
+        raise FormatError(f"mesh file is larger than the limit of {MAX_MESH_FILE_BYTES} bytes",
+                          path)
+    return data
 
 
 def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
@@ -43,10 +75,15 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
     import trimesh
 
     try:
+        data = _file_bytes(path)
+        if ext == ".obj":
+            data = strip_material_libraries(data)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = trimesh.load(path, process=False, maintain_order=True, force="mesh",
-                                  skip_materials=True)
+            # bytes, not the path: trimesh gets no resolver and cannot open other files
+            loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], process=False,
+                                  maintain_order=True, force="mesh", skip_materials=True)
+        del data
     except FormatError:
         raise
     except ImportError as exc:   # an optional package trimesh needs for this file

@@ -11,7 +11,8 @@ anything from ``gsverse_format.io`` fills the table.
 and, with ``frame_change`` (the default), rotate between the file's frame and the glTF frame
 (+Y up) in which every :class:`SplatAsset` of this package lives. glTF and USD files are in
 the glTF frame already; 3DGS PLY files are in the 3DGS capture frame (+Y down), 180° about Z
-away (:data:`gsverse_format.transform.PLY_TO_GLTF`). The conversion pipeline
+away (:data:`gsverse_format.transform.PLY_TO_GLTF`); the web formats of :mod:`.splatformats`
+use the 3DGS frame too, except spz (``spz-rub``). The conversion pipeline
 (:mod:`gsverse_format.pipeline`) uses the same :data:`FRAMES` for the sources it reads.
 """
 from __future__ import annotations
@@ -27,7 +28,8 @@ from ..model import (Anchoring, KhrProperties, SplatAsset, SplatPrimitive, Trian
                      prim_label)
 from ..transform import PLY_TO_GLTF, rotate_mesh, rotate_splats
 
-__all__ = ["Frame", "FRAMES", "Z_UP_TO_GLTF", "FileFormat", "FORMATS", "register_format",
+__all__ = ["Frame", "FRAMES", "Z_UP_TO_GLTF", "FileFormat", "FORMATS", "VARIANTS",
+           "register_format",
            "find_format", "suffixes", "rotate_asset", "read_asset", "write_asset", "khr_loss"]
 
 #: Z-up scene (Blender world) -> glTF +Y up: (x, y, z) -> (x, z, −y).
@@ -50,6 +52,11 @@ FRAMES: dict[str, Frame] = {f.name: f for f in (
     Frame("3dgs", PLY_TO_GLTF,
           "3DGS frame (+Y down) rotated 180 degrees about Z into glTF (+Y up)"),
     Frame("z-up", Z_UP_TO_GLTF, "Z-up scene rotated into glTF (+Y up) by (x, y, z) -> (x, z, -y)"),
+    # spz's RUB (+Y up, +Z back) is the 3DGS frame with y and z flipped: 180 degrees about Y
+    # puts an spz file where the PLY it was made from goes (the 3dgs frame's rotation)
+    Frame("spz-rub", np.diag([-1.0, 1.0, -1.0]),
+          "spz RUB frame (+Y up, +Z back) rotated 180 degrees about Y into glTF, where the "
+          "3DGS PLY of the same splats goes"),
 )}
 
 
@@ -57,7 +64,8 @@ FRAMES: dict[str, Frame] = {f.name: f for f in (
 class FileFormat:
     """A registered splat-asset format: ``read(path) -> SplatAsset`` in the file's own
     coordinate frame, ``write(asset, path, *, protect=(), **options)``; ``frame`` is that
-    frame: ``"gltf"`` (+Y up) or ``"3dgs"`` (the 3DGS capture frame, +Y down).
+    frame, a key of :data:`FRAMES`: ``"gltf"`` (+Y up), ``"3dgs"`` (the 3DGS capture frame,
+    +Y down) or ``"spz-rub"``.
     ``keeps_khr`` says whether the format stores every :class:`~gsverse_format.model.
     KhrProperties` (kernel, projection, sorting method, nested extensions); a format that
     does not is only given primitives with the defaults (:func:`write_asset` refuses others)."""
@@ -68,22 +76,35 @@ class FileFormat:
     write: Callable[..., Any] | None = None
     frame: str = "gltf"
     keeps_khr: bool = False
+    #: for a format that shares its suffix with another (compressed PLY is a ``.ply``): whether
+    #: a file is this format, from its content (never raises)
+    sniff: Callable[[str], bool] | None = None
 
 
 #: suffix (lower case, with the dot) -> format; filled by :func:`register_format`.
 FORMATS: dict[str, FileFormat] = {}
+#: suffix -> the formats registered with ``sniff`` for it: :func:`find_format` asks them
+#: first when reading, and takes :data:`FORMATS`' entry when none claims the file.
+VARIANTS: dict[str, list[FileFormat]] = {}
 
 
 def register_format(name: str, suffixes: tuple[str, ...], *,
                     read: Callable[..., SplatAsset] | None = None,
                     write: Callable[..., Any] | None = None, frame: str = "gltf",
-                    keeps_khr: bool = False) -> None:
-    """Register a format under its file suffixes (each format package calls this once)."""
+                    keeps_khr: bool = False,
+                    sniff: Callable[[str], bool] | None = None) -> None:
+    """Register a format under its file suffixes (each format package calls this once; a
+    read-only format gives no ``write``). With ``sniff`` the format is a variant of its
+    suffixes, chosen by content (:data:`VARIANTS`) and never their default."""
     if frame not in FRAMES:
         raise ValueError(f"unknown frame {frame!r}; use one of {', '.join(FRAMES)}")
-    fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame, keeps_khr)
+    fmt = FileFormat(name, tuple(s.lower() for s in suffixes), read, write, frame, keeps_khr,
+                     sniff)
     for suffix in fmt.suffixes:
-        FORMATS[suffix] = fmt
+        if sniff is not None:
+            VARIANTS.setdefault(suffix, []).append(fmt)
+        else:
+            FORMATS[suffix] = fmt
 
 
 def suffixes(kind: str = "read", name: str | None = None) -> tuple[str, ...]:
@@ -101,6 +122,11 @@ def find_format(path: str | os.PathLike[str], kind: str = "read") -> FileFormat:
     """The format that reads (``kind="read"``) or writes (``"write"``) ``path``, by its suffix;
     :class:`UsageError` naming the supported suffixes when there is none."""
     ext = _ext(path)
+    if kind == "read":
+        for variant in VARIANTS.get(ext, ()):
+            if variant.read is not None and variant.sniff is not None \
+                    and variant.sniff(os.fspath(path)):
+                return variant
     fmt = FORMATS.get(ext)
     if fmt is None or getattr(fmt, kind) is None:
         what = "splat input" if kind == "read" else "output"

@@ -139,10 +139,12 @@ def open_gltf_source(path: str | os.PathLike, animation: int | str | None = 0, *
     ``animation``: index or name (default the first). :class:`FormatError` naming the file
     when it cannot be read or holds neither a skin nor morph targets nor an animation."""
     from ..io.gltf import dequantize, open_document
+    from ..io.gltf.scene import check_instancing
 
     spath = os.fspath(path)
     try:
         document = open_document(spath)
+        check_instancing(document.doc)  # node cycles and instancing limits, before expanding
         reader = document.reader
 
         def accessor(i: int) -> np.ndarray:

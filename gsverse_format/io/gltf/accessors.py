@@ -13,15 +13,16 @@ from dataclasses import dataclass
 from typing import Any, Iterable
 
 import numpy as np
-import pygltflib
 
 from ...codes import Code
-from ...vocabulary import (BYTE, COMPONENT_TYPE_NAMES, FLOAT, SHORT, UNSIGNED_BYTE, UNSIGNED_INT,
-                           UNSIGNED_SHORT, Format)
-from .container import Buffers, as_index, as_int, gltf_error, is_int
+from ...limits import MAX_READ_AMPLIFICATION, READ_AMPLIFICATION_SLACK
+from ...vocabulary import (BYTE, COMPONENT_TYPE_NAMES, EXTENSION, FLOAT, KHR, SHORT,
+                           UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT, Format)
+from .container import Buffers, JsonView, as_index, as_int, gltf_error, is_int
 
 __all__ = ["COMPONENT_DTYPES", "TYPE_COMPONENTS", "MATRIX_ROWS", "QUANTIZED_POSITION_FORMATS",
-           "AccessorLayout", "Accessors", "dequantize", "describe_format", "format_allowed"]
+           "AccessorLayout", "Accessors", "dequantize", "describe_format", "format_allowed",
+           "check_read_amplification"]
 
 #: numpy dtype of each glTF component type (little endian).
 COMPONENT_DTYPES: dict[int, np.dtype] = {
@@ -91,7 +92,7 @@ def dequantize(arr: np.ndarray, ctype: int, normalized: bool) -> np.ndarray:
 class Accessors(Buffers):
     """Bounds-checked access to the accessors (and buffers) of one glTF document."""
 
-    def __init__(self, path: str, gltf: pygltflib.GLTF2, glb_bin: memoryview | None,
+    def __init__(self, path: str, gltf: JsonView, glb_bin: memoryview | None,
                  budget: int, max_data_uri: int | None = None) -> None:
         super().__init__(path, gltf, glb_bin, budget, max_data_uri)
         self.accessors = self.array("accessors")
@@ -104,19 +105,19 @@ class Accessors(Buffers):
         sparse or bufferView-less accessors (not supported), misaligned offsets and strides,
         and every out-of-bounds case. Nothing is read or allocated.
         """
-        acc = self.accessors[i]
+        acc = self.accessors.item(i)
         pointer = f"/accessors/{i}"
         where = f"{what} (accessor {i})" if what else f"accessors[{i}]"
-        gtype = acc.type
+        gtype = acc.get("type")
         if gtype not in TYPE_COMPONENTS and gtype not in MATRIX_ROWS:
             raise gltf_error(Code.ACCESSOR_INVALID, f"{where} has unknown type {gtype!r}",
                              f"{pointer}/type")
-        ctype = acc.componentType
+        ctype = acc.get("componentType")
         if not is_int(ctype) or int(ctype) not in COMPONENT_DTYPES:
             raise gltf_error(Code.ACCESSOR_INVALID, f"{where} has unknown componentType "
                              f"{ctype!r}", f"{pointer}/componentType")
         ctype = int(ctype)
-        normalized = acc.normalized
+        normalized = acc.get("normalized")
         if normalized is None:
             normalized = False
         if not isinstance(normalized, bool):
@@ -125,17 +126,17 @@ class Accessors(Buffers):
         if normalized and ctype in (FLOAT, UNSIGNED_INT):
             raise gltf_error(Code.ACCESSOR_INVALID, f"{where}: {COMPONENT_TYPE_NAMES[ctype]} "
                              f"accessors cannot be normalized", f"{pointer}/normalized")
-        count = as_int(acc.count, f"{where}.count", pointer=f"{pointer}/count",
+        count = as_int(acc.get("count"), f"{where}.count", pointer=f"{pointer}/count",
                        code=Code.ACCESSOR_INVALID)
-        if acc.sparse is not None:
+        if acc.get("sparse") is not None:
             raise gltf_error(Code.ACCESSOR_UNSUPPORTED, f"{where}: sparse accessors not "
                              f"supported", f"{pointer}/sparse")
-        if acc.bufferView is None:
+        if acc.get("bufferView") is None:
             raise gltf_error(Code.ACCESSOR_UNSUPPORTED, f"{where} has no bufferView (compressed "
                              f"or placeholder data is not supported)", pointer)
-        v = as_index(acc.bufferView, len(self.views), f"{where}.bufferView",
+        v = as_index(acc.get("bufferView"), len(self.views), f"{where}.bufferView",
                      f"{pointer}/bufferView")
-        view = self.views[v]
+        view = self.views.item(v)
         dtype = COMPONENT_DTYPES[ctype]
         if gtype in MATRIX_ROWS:  # every column starts 4-byte aligned (glTF 2.0 §3.6.2.4)
             rows = MATRIX_ROWS[gtype]
@@ -144,7 +145,7 @@ class Accessors(Buffers):
         else:
             ncomp = TYPE_COMPONENTS[gtype]
             elem = dtype.itemsize * ncomp
-        acc_offset = as_int(acc.byteOffset, f"{where}.byteOffset", default=0,
+        acc_offset = as_int(acc.get("byteOffset"), f"{where}.byteOffset", default=0,
                             pointer=f"{pointer}/byteOffset")
         if acc_offset % dtype.itemsize:
             raise gltf_error(Code.ACCESSOR_MISALIGNED, f"{where}.byteOffset {acc_offset} is not "
@@ -152,8 +153,8 @@ class Accessors(Buffers):
                              f"{pointer}/byteOffset")
         b, view_offset, view_length = self.view_bounds(v)
         vpointer = f"/bufferViews/{v}/byteStride"
-        stride = elem if view.byteStride is None else as_int(
-            view.byteStride, f"bufferViews[{v}].byteStride", minimum=1, pointer=vpointer,
+        stride = elem if view.get("byteStride") is None else as_int(
+            view.get("byteStride"), f"bufferViews[{v}].byteStride", minimum=1, pointer=vpointer,
             code=Code.BUFFER_VIEW_STRIDE_INVALID)
         if stride < elem:
             raise gltf_error(Code.BUFFER_VIEW_STRIDE_INVALID, f"bufferViews[{v}].byteStride "
@@ -181,9 +182,9 @@ class Accessors(Buffers):
         ``gtypes`` is reported under ``code``.
         """
         i = as_index(i, len(self.accessors), f"{what}: accessor")
-        acc = self.accessors[i]
+        acc = self.accessors.item(i)
         where = f"{what} (accessor {i})"
-        gtype = acc.type
+        gtype = acc.get("type")
         if gtype not in gtypes:
             raise gltf_error(code, f"{where} has type {gtype!r}, expected {' or '.join(gtypes)}",
                              f"/accessors/{i}/type")
@@ -242,3 +243,57 @@ class Accessors(Buffers):
                              f"or UNSIGNED_INT (not normalized), got {_kind(ctype, normalized)}",
                              f"/accessors/{i}/componentType")
         return arr[:, 0].astype(np.uint32)
+
+
+def _declared_bytes(accessors: list, ref: Any) -> int:
+    """``count`` times the element size an accessor declares (0 when it cannot be told: its
+    own checks report that when it is read)."""
+    if not is_int(ref) or not 0 <= ref < len(accessors) or not isinstance(accessors[ref], dict):
+        return 0
+    acc = accessors[ref]
+    count, ctype, gtype = acc.get("count"), acc.get("componentType"), acc.get("type")
+    if not is_int(count) or count <= 0 or not is_int(ctype) or ctype not in COMPONENT_DTYPES:
+        return 0
+    ncomp = TYPE_COMPONENTS.get(gtype) or MATRIX_ROWS.get(gtype, 0) ** 2
+    return int(count) * ncomp * COMPONENT_DTYPES[int(ctype)].itemsize
+
+
+def check_read_amplification(doc: dict) -> None:
+    """Raise ``SIZE_LIMIT_EXCEEDED`` when reading every splat primitive would decode far more
+    bytes than the buffers hold: primitives sharing accessors (legal glTF) would make a small
+    file expand into gigabytes of splats. The accessor bytes all ``KHR_gaussian_splatting``
+    primitives and their anchor extensions refer to, an accessor counted once per use, may
+    be at most :data:`~gsverse_format.limits.MAX_READ_AMPLIFICATION` times the declared
+    buffer bytes plus :data:`~gsverse_format.limits.READ_AMPLIFICATION_SLACK`. Declared
+    sizes only, checked on the raw JSON before anything is read (a ``byteLength`` larger
+    than the data is refused when the buffer loads)."""
+    accessors = doc.get("accessors")
+    buffers = doc.get("buffers")
+    meshes = doc.get("meshes")
+    if not isinstance(accessors, list) or not isinstance(meshes, list):
+        return
+    held = sum(int(b["byteLength"]) for b in (buffers if isinstance(buffers, list) else [])
+               if isinstance(b, dict) and is_int(b.get("byteLength")) and b["byteLength"] > 0)
+    allowed = MAX_READ_AMPLIFICATION * held + READ_AMPLIFICATION_SLACK
+    total = 0
+    for m, mesh in enumerate(meshes):
+        prims = mesh.get("primitives") if isinstance(mesh, dict) else None
+        for p, prim in enumerate(prims if isinstance(prims, list) else []):
+            if not isinstance(prim, dict) or not isinstance(prim.get("extensions"), dict):
+                continue
+            khr = prim["extensions"].get(KHR)
+            if not isinstance(khr, dict):
+                continue
+            attrs = prim.get("attributes")
+            refs = list(attrs.values()) if isinstance(attrs, dict) else []
+            nested = khr.get("extensions")
+            anchor = nested.get(EXTENSION) if isinstance(nested, dict) else None
+            if isinstance(anchor, dict):
+                refs += [v for k, v in anchor.items() if k not in ("mesh", "primitive")]
+            total += sum(_declared_bytes(accessors, r) for r in refs)
+            if total > allowed:
+                raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the splat primitives up to "
+                                 f"meshes[{m}].primitives[{p}] would read {total} bytes of "
+                                 f"accessors, more than {MAX_READ_AMPLIFICATION} times the "
+                                 f"{held} bytes of the buffers (accessors shared by many "
+                                 f"primitives)", f"/meshes/{m}/primitives/{p}")

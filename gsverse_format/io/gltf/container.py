@@ -1,38 +1,42 @@
 """The glTF container: GLB chunks, the JSON document, buffers, URIs, buffer views and limits.
 
 Nothing here knows about splats. :func:`parse_glb` splits a GLB file into its JSON and BIN
-chunks, :func:`parse_json` decodes and type-checks the JSON, :func:`header_problems` checks
+chunks, :func:`parse_json` decodes and type-checks the JSON (array lengths capped by
+:data:`~gsverse_format.limits.MAX_GLTF_ARRAY_ITEMS` before anything else; members are read
+through :class:`JsonView`, no object is built per accessor), :func:`header_problems` checks
 ``asset.version`` and ``extensionsRequired``, and :class:`Buffers` loads buffers (GLB ``BIN``
 chunk, base64 ``data:`` URIs, or files inside the asset's folder; nothing is fetched from the
-network) and checks buffer views, within a byte budget. Every problem is a
+network; a ``data:`` URI is capped by :data:`~gsverse_format.limits.MAX_DATA_URI_BYTES` and
+decoded in slices, without a copy of the whole text) and checks buffer views, within a byte
+budget. Every problem is a
 :class:`GltfFormatError` carrying its issue :class:`~gsverse_format.codes.Code` and where it
 is (a JSON pointer or a byte offset).
 """
 from __future__ import annotations
 
-import base64
 import binascii
 import json
 import os
 import re
 import struct
 import urllib.parse
-import warnings
 from typing import Any, Iterable
 
 import numpy as np
-import pygltflib
 
 from ...codes import Code
 from ...errors import FormatError
+from ...limits import MAX_ASSET_BYTES, MAX_DATA_URI_BYTES, MAX_GLTF_ARRAY_ITEMS
 from ...vocabulary import KHR
 
 __all__ = ["DEFAULT_MAX_BYTES", "GLB_MAGIC", "CHUNK_JSON", "CHUNK_BIN", "UNREADABLE_REQUIRED",
            "GltfFormatError", "gltf_error", "is_int", "as_int", "as_index", "parse_glb",
-           "glb_bytes", "pointer_token", "parse_json", "header_problems", "Buffers"]
+           "glb_bytes", "pointer_token", "JsonView", "check_data_uri_sizes", "json_text",
+           "require_json_start",
+           "parse_json", "header_problems", "Buffers"]
 
 #: Default cap on the bytes one asset may occupy (file plus external/embedded buffers).
-DEFAULT_MAX_BYTES = 2 ** 33
+DEFAULT_MAX_BYTES = MAX_ASSET_BYTES
 
 GLB_MAGIC = b"glTF"
 CHUNK_JSON = 0x4E4F534A
@@ -226,36 +230,138 @@ def _check_types(doc: dict) -> None:
                 raise bad(f"{where}.extensions must be an object", f"{pointer}/extensions")
 
 
-#: What the dataclass decoder of pygltflib raises for JSON that does not follow its schema.
-_DECODER_ERRORS = (AttributeError, TypeError, ValueError, KeyError, IndexError, OverflowError,
-                   RecursionError)
+class JsonView:
+    """Attribute access to a JSON object: ``view.byteOffset`` is ``obj.get("byteOffset")``
+    (``None`` when absent), nested objects and arrays are views too. Nothing is copied or
+    decoded ahead of use, so a document with many accessors costs only its JSON parse."""
+
+    __slots__ = ("_obj",)
+
+    def __init__(self, obj: dict) -> None:
+        self._obj = obj
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return _view(self._obj.get(name))
 
 
-def parse_json(raw: bytes) -> tuple[dict, pygltflib.GLTF2]:
-    """(raw JSON document, pygltflib document) of glTF JSON bytes; raises
-    :class:`GltfFormatError` for bytes that are not UTF-8, not JSON, not an object, or whose
-    members have the wrong types."""
+class _ListView:
+    """A JSON array whose object elements are seen as :class:`JsonView` (built on access)."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: list) -> None:
+        self._items = items
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __getitem__(self, i: int) -> Any:
+        return _view(self._items[i])
+
+    def __iter__(self) -> Iterable[Any]:
+        return (_view(item) for item in self._items)
+
+    def item(self, i: int) -> Any:
+        """Element ``i`` as it is in the JSON (a ``dict`` for an object)."""
+        return self._items[i]
+
+
+def _view(value: Any) -> Any:
+    if isinstance(value, dict):
+        return JsonView(value)
+    if isinstance(value, list):
+        return _ListView(value)
+    return value
+
+
+def _check_counts(doc: dict) -> None:
+    """Array lengths against :data:`MAX_GLTF_ARRAY_ITEMS`, before any member is looked at."""
+    for key, value in doc.items():
+        if isinstance(value, list) and len(value) > MAX_GLTF_ARRAY_ITEMS:
+            raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the document has {len(value)} {key}, "
+                             f"more than the limit of {MAX_GLTF_ARRAY_ITEMS}",
+                             f"/{pointer_token(key)}")
+    meshes = doc.get("meshes")
+    for m, mesh in enumerate(meshes if isinstance(meshes, list) else []):
+        prims = mesh.get("primitives") if isinstance(mesh, dict) else None
+        if isinstance(prims, list) and len(prims) > MAX_GLTF_ARRAY_ITEMS:
+            raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"meshes[{m}] has {len(prims)} "
+                             f"primitives, more than the limit of {MAX_GLTF_ARRAY_ITEMS}",
+                             f"/meshes/{m}/primitives")
+
+
+def check_data_uri_sizes(raw: bytes, limit: int) -> None:
+    """Refuse, before the JSON is parsed, a ``data:`` URI string whose base64 text would
+    decode to more than ``limit`` bytes (``DATA_URI_TOO_LARGE``): a huge URI would otherwise
+    cost several copies of itself in memory before its size could be looked at. Each
+    ``"data:`` is measured up to the next quote (base64 text holds no quote or escape)."""
+    encoded_limit = (limit // 3 + 1) * 4 + 1024
+    pos = raw.find(b'"data:')
+    while pos >= 0:
+        end = raw.find(b'"', pos + 1)
+        if end < 0:
+            return  # unterminated string: the JSON parser says so
+        if end - pos - 1 > encoded_limit:
+            raise gltf_error(Code.DATA_URI_TOO_LARGE, f"a data: URI at byte {pos + 1} of the "
+                             f"JSON holds about {(end - pos) * 3 // 4} bytes, more than the "
+                             f"limit of {limit} bytes per data: URI", offset=None)
+        pos = raw.find(b'"data:', end + 1)
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON value")
+
+
+#: First bytes of files that are often given in place of a glTF file, by what they are.
+_OTHER_MAGIC = ((b"ply", "a PLY file"), (b"NGSP", "an SPZ file"), (b"\x1f\x8b", "a gzip file "
+                "(.spz?)"), (b"PK\x03\x04", "a ZIP archive (.sog, .usdz?)"),
+                (b"PXR-USDC", "a binary USD file"), (b"#usda", "a USD text file"))
+
+
+def require_json_start(blob: bytes | memoryview) -> None:
+    """Raise JSON_INVALID saying "not a glTF file" when ``blob`` (a whole file that is not
+    a GLB) cannot be glTF JSON: its first byte after whitespace and a byte order mark is
+    not ``{``. (Without this, a PLY given as glTF is reported as "not valid UTF-8".)"""
+    head = bytes(blob[:64])
+    text = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
+    text = text.lstrip(b" \t\r\n")
+    if not text or text.startswith(b"{"):
+        return
+    what = next((name for magic, name in _OTHER_MAGIC if head.startswith(magic)), None)
+    raise gltf_error(Code.JSON_INVALID, f"not a glTF file: it starts with {head[:8]!r}"
+                     + (f" ({what})" if what else "") + ", not with b'glTF' (GLB) or '{' "
+                     "(glTF JSON)", offset=0)
+
+
+def json_text(raw: bytes | memoryview) -> str:
+    """glTF JSON bytes as text (a leading byte order mark dropped); raises
+    :class:`GltfFormatError` for bytes that are not UTF-8."""
     try:
-        text = raw.decode("utf-8")
+        text = str(raw, "utf-8")
     except UnicodeDecodeError as err:
         raise gltf_error(Code.JSON_NOT_UTF8,
                          f"glTF JSON is not valid UTF-8 (byte {err.start})") from None
-    text = text.lstrip("\ufeff")
+    return text.lstrip("\ufeff") if text.startswith("\ufeff") else text
+
+
+def parse_json(raw: bytes | memoryview | str) -> tuple[dict, JsonView]:
+    """(raw JSON document, attribute view of it) of glTF JSON bytes or text; raises
+    :class:`GltfFormatError` for bytes that are not UTF-8, not JSON (``NaN`` and
+    ``Infinity`` included), not an object, with arrays longer than the limit, or whose
+    members have the wrong types."""
+    text = raw if isinstance(raw, str) else json_text(raw)
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, parse_constant=_no_constant)
     except (ValueError, RecursionError) as err:
         raise gltf_error(Code.JSON_INVALID, f"glTF JSON is not valid JSON ({err})") from None
+    del text
     if not isinstance(doc, dict):
         raise gltf_error(Code.JSON_INVALID, "glTF JSON root is not an object", "")
+    _check_counts(doc)
     _check_types(doc)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            gltf = pygltflib.GLTF2.from_json(text, infer_missing=True)
-    except _DECODER_ERRORS as err:
-        raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"glTF JSON does not follow the glTF "
-                         f"schema ({type(err).__name__}: {err})") from None
-    return doc, gltf
+    return doc, JsonView(doc)
 
 
 def header_problems(doc: dict, *, strict: bool = True) -> list[GltfFormatError]:
@@ -291,27 +397,30 @@ class Buffers:
     """Bounds-checked access to the buffers and buffer views of one glTF document.
 
     ``budget`` is how many bytes the buffers may still occupy (the file's size already
-    spent); ``max_data_uri`` optionally caps the decoded size of each ``data:`` URI.
+    spent); ``max_data_uri`` caps the decoded size of each ``data:`` URI (``None``:
+    :data:`~gsverse_format.limits.MAX_DATA_URI_BYTES`).
     """
 
-    def __init__(self, path: str, gltf: pygltflib.GLTF2, glb_bin: memoryview | None,
+    def __init__(self, path: str, gltf: JsonView, glb_bin: memoryview | None,
                  budget: int, max_data_uri: int | None = None) -> None:
         self.path = path
         self.folder = os.path.dirname(os.path.abspath(path))
         self.gltf = gltf
         self.glb_bin = glb_bin
         self.budget = budget
-        self.max_data_uri = max_data_uri
+        self.max_data_uri = MAX_DATA_URI_BYTES if max_data_uri is None else max_data_uri
         self.views = self.array("bufferViews")
         self.buffers_json = self.array("buffers")
         self._buffers: dict[int, memoryview] = {}
+        self._view_bounds: dict[int, tuple[int, int, int]] = {}
 
-    def array(self, name: str) -> list:
-        """The decoded top-level array ``name`` (empty when absent)."""
+    def array(self, name: str) -> Any:
+        """The top-level array ``name`` (empty when absent), its objects seen as
+        :class:`JsonView`."""
         value = getattr(self.gltf, name, None)
         if value is None:
-            return []
-        if not isinstance(value, list):
+            return _ListView([])
+        if not isinstance(value, _ListView):
             raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"{name} must be an array", f"/{name}")
         return value
 
@@ -321,25 +430,40 @@ class Buffers:
                              f"{what} would take the asset past the size limit", pointer)
         self.budget -= size
 
-    def _data_uri(self, uri: str, what: str, pointer: str) -> bytes:
-        comma = uri.find(",")
+    def _data_uri(self, uri: str, what: str, pointer: str) -> bytearray:
+        comma = uri.find(",", 0, 1024)
         if comma < 0:
             raise gltf_error(Code.URI_INVALID, f"{what}: malformed data: URI (no comma)", pointer)
         if not uri[5:comma].lower().endswith(";base64"):
             raise gltf_error(Code.URI_INVALID, f"{what}: only base64 data: URIs are supported",
                              pointer)
-        payload = uri[comma + 1:]
-        size = len(payload) * 3 // 4
-        if self.max_data_uri is not None and size > self.max_data_uri:
+        encoded = len(uri) - comma - 1
+        size = encoded * 3 // 4
+        if size > self.max_data_uri:
             raise gltf_error(Code.DATA_URI_TOO_LARGE, f"{what}: data: URI holds about {size} "
                              f"bytes, more than the limit of {self.max_data_uri} bytes per "
                              f"data: URI", pointer)
+        if encoded % 4:
+            raise gltf_error(Code.URI_INVALID, f"{what}: data: URI is not valid base64",
+                             pointer)
+        size -= uri.count("=", max(comma + 1, len(uri) - 2))
         self._spend(size, what, pointer)
+        # Decoded slice by slice into one buffer: never a second copy of the whole text.
+        out = bytearray(size)
+        step = 4 * 2 ** 20
+        pos = 0
         try:
-            return base64.b64decode(payload, validate=True)
+            for start in range(comma + 1, len(uri), step):
+                chunk = binascii.a2b_base64(uri[start:start + step], strict_mode=True)
+                out[pos:pos + len(chunk)] = chunk
+                pos += len(chunk)
         except (binascii.Error, ValueError):
             raise gltf_error(Code.URI_INVALID, f"{what}: data: URI is not valid base64",
                              pointer) from None
+        if pos != size:
+            raise gltf_error(Code.URI_INVALID, f"{what}: data: URI is not valid base64",
+                             pointer)
+        return out
 
     def _file_uri(self, uri: str, what: str, pointer: str) -> bytes:
         shown = uri if len(uri) <= 80 else uri[:77] + "..."
@@ -375,11 +499,12 @@ class Buffers:
         """The bytes of buffer ``i`` (exactly ``byteLength`` of them)."""
         if i in self._buffers:
             return self._buffers[i]
-        buf = self.buffers_json[i]
+        buf = self.buffers_json.item(i)
         what = f"buffers[{i}]"
         pointer = f"/buffers/{i}"
-        length = as_int(buf.byteLength, f"{what}.byteLength", pointer=f"{pointer}/byteLength")
-        uri = buf.uri
+        length = as_int(buf.get("byteLength"), f"{what}.byteLength",
+                        pointer=f"{pointer}/byteLength")
+        uri = buf.get("uri")
         if uri is None:
             if i != 0 or self.glb_bin is None:
                 raise gltf_error(Code.BUFFER_MISSING_DATA, f"{what} has no uri and the file has "
@@ -389,7 +514,7 @@ class Buffers:
             raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"{what}.uri must be a string",
                              f"{pointer}/uri")
         elif uri[:5].lower() == "data:":
-            data = memoryview(self._data_uri(uri, what, f"{pointer}/uri"))
+            data = memoryview(self._data_uri(uri, what, f"{pointer}/uri")).toreadonly()
         else:
             data = memoryview(self._file_uri(uri, what, f"{pointer}/uri"))
         if len(data) < length:
@@ -401,17 +526,20 @@ class Buffers:
 
     def view_bounds(self, v: int) -> tuple[int, int, int]:
         """(buffer index, byteOffset, byteLength) of bufferView ``v``, within its buffer."""
-        view = self.views[v]
+        if v in self._view_bounds:
+            return self._view_bounds[v]
+        view = self.views.item(v)
         pointer = f"/bufferViews/{v}"
-        view_offset = as_int(view.byteOffset, f"bufferViews[{v}].byteOffset", default=0,
+        view_offset = as_int(view.get("byteOffset"), f"bufferViews[{v}].byteOffset", default=0,
                              pointer=f"{pointer}/byteOffset")
-        view_length = as_int(view.byteLength, f"bufferViews[{v}].byteLength", minimum=1,
+        view_length = as_int(view.get("byteLength"), f"bufferViews[{v}].byteLength", minimum=1,
                              pointer=f"{pointer}/byteLength")
-        b = as_index(view.buffer, len(self.buffers_json), f"bufferViews[{v}].buffer",
+        b = as_index(view.get("buffer"), len(self.buffers_json), f"bufferViews[{v}].buffer",
                      f"{pointer}/buffer")
         buf = self.buffer(b)
         if view_offset + view_length > len(buf):
             raise gltf_error(Code.BUFFER_VIEW_OUT_OF_BOUNDS,
                              f"bufferViews[{v}] (bytes {view_offset}..{view_offset + view_length})"
                              f" runs past the end of buffers[{b}] ({len(buf)} bytes)", pointer)
+        self._view_bounds[v] = (b, view_offset, view_length)
         return b, view_offset, view_length

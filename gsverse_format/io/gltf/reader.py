@@ -22,8 +22,11 @@ from ...codes import Code
 from ...errors import FormatError, GsverseError
 from ...model import (Anchoring, GamesAnchors, KhrProperties, LocalAnchors, SplatAsset,
                       SplatCloud, SplatPrimitive, TriangleMesh)
-from ...vocabulary import (DEFORMATIONS, EXTENSION, FIELDS_BY_KEY, FLOAT, KHR, PROFILES, SH_C0,
-                           UNSIGNED_BYTE, UNSIGNED_SHORT, required_fields)
+from ...anchors_derive import degenerate_splats, derive_local
+from ...frames import local_frames
+from ...vocabulary import (DERIVED_KEYS, DEFORMATIONS, EXTENSION, FACE_COUNTS, FIELDS_BY_KEY,
+                           FLOAT, KHR, PROFILES, SH_C0, UNSIGNED_BYTE, UNSIGNED_SHORT,
+                           gltf_required_keys)
 from .accessors import Accessors
 from .container import DEFAULT_MAX_BYTES, GltfFormatError, as_index, gltf_error, pointer_token
 from .document import Document, open_document
@@ -107,6 +110,47 @@ def _khr_properties(khr: dict, where: str, pointer: str, required: list,
                          own)
 
 
+def _faces_from_counts(counts: np.ndarray, faces: int, splats: int, what: str,
+                       pointer: str) -> np.ndarray:
+    """Face index per splat from per-face splat counts (spec §Properties, ``faceCounts``):
+    ``counts`` must hold one count per triangle and sum (in 64-bit integers) to ``splats``."""
+    if len(counts) != faces:
+        raise gltf_error(Code.ANCHOR_FACE_COUNTS_COUNT, f"{what} has {len(counts)} elements but "
+                         f"the anchor mesh has {faces} triangles (one count per triangle)",
+                         pointer)
+    total = int(counts.astype(np.int64).sum())
+    if total != splats:
+        raise gltf_error(Code.ANCHOR_FACE_COUNTS_SUM, f"{what} sums to {total} but the "
+                         f"primitive has {splats} splats", pointer)
+    return np.repeat(np.arange(faces, dtype=np.uint32), counts.astype(np.int64))
+
+
+def _derived_anchors(mesh: TriangleMesh, face: np.ndarray, rest: SplatCloud, deformation: str,
+                     where: str, pointer: str) -> LocalAnchors:
+    """``local`` anchors derived from the rest pose (spec §Derived `local` anchors)."""
+    frames = local_frames(mesh.triangles())
+    bad = degenerate_splats(mesh, face, frames)
+    if bad.size:
+        raise gltf_error(Code.ANCHOR_DERIVED_ON_DEGENERATE, f"{where}: {bad.size} splat(s) "
+                         f"without barycentrics lie on triangles degenerate at rest (splat "
+                         f"{int(bad[0])}, face {int(face[bad[0]])}); their anchors cannot be "
+                         f"derived", pointer)
+    # used exactly as stored anchors: the rules on localRotation and localScale apply
+    zero = np.flatnonzero(~np.any(rest.rotations != 0, axis=1))
+    if zero.size:
+        raise gltf_error(Code.ROTATION_NOT_UNIT, f"{where}: the rest ROTATION of {zero.size} "
+                         f"splat(s) without stored anchors is zero (splat {int(zero[0])}); "
+                         f"their derived localRotation has no rotation", pointer)
+    negative = np.flatnonzero(np.any(rest.scales < 0, axis=1))
+    if negative.size:
+        raise gltf_error(Code.SCALE_NEGATIVE, f"{where}: the rest SCALE of {negative.size} "
+                         f"splat(s) without stored anchors is negative (splat "
+                         f"{int(negative[0])}); derived local scales must be >= 0", pointer)
+    derived = derive_local(mesh, face, rest.means, rest.rotations, frames=frames)
+    return LocalAnchors(face, derived.barycentrics, derived.normal_offset,
+                        derived.local_rotation, rest.scales, deformation)  # type: ignore[arg-type]
+
+
 class SplatReader:
     """Reads the splat primitives, their anchoring and anchor meshes of one document."""
 
@@ -158,9 +202,11 @@ class SplatReader:
         self._triangles[key] = mesh
         return mesh
 
-    def anchoring(self, obj: Any, count: int, where: str, pointer: str) -> Anchoring:
-        """The anchoring of a splat primitive of ``count`` splats from its anchor extension
-        object ``obj`` (found at ``pointer``)."""
+    def anchoring(self, obj: Any, rest: SplatCloud, where: str, pointer: str) -> Anchoring:
+        """The anchoring of the splat primitive with rest pose ``rest`` from its anchor
+        extension object ``obj`` (found at ``pointer``): explicit anchors, or (version 1.2)
+        face indices from ``faceCounts`` and ``local`` anchors derived from the rest pose."""
+        count = len(rest)
         where = f"{where} {EXTENSION}"
         if not isinstance(obj, dict):
             raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where} must be an object", pointer)
@@ -180,7 +226,20 @@ class SplatReader:
         if profile not in PROFILES:
             raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where}.profile must be 'local' or "
                              f"'games', got {profile!r}", f"{pointer}/profile")
-        missing = [f.key for f in required_fields(profile) if f.key not in obj]
+        counts_key = FACE_COUNTS.key
+        if ("faceIndex" in obj) == (counts_key in obj):
+            raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where} must have exactly one of "
+                             f"faceIndex and {counts_key}, not "
+                             f"{'both' if 'faceIndex' in obj else 'neither'}", pointer)
+        derived = profile == "local" and "barycentrics" not in obj
+        if derived:
+            present = [k for k in DERIVED_KEYS if k in obj]
+            if present:
+                raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where}: without barycentrics "
+                                 f"(derived local anchors) {', '.join(present)} must be absent",
+                                 f"{pointer}/{present[0]}")
+        required = gltf_required_keys(profile, counts=counts_key in obj, derived=derived)
+        missing = [key for key in required if key not in obj]
         if missing:
             raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION,
                              f"{where} ({profile} profile) lacks {', '.join(missing)}", pointer)
@@ -198,14 +257,20 @@ class SplatReader:
             return checked(key, r.floats(obj[key], f"{where}.{key}", (field.accessor,),
                                          field.formats, code=Code.ANCHOR_ACCESSOR_FORMAT, **kw))
 
-        face = checked("faceIndex", r.integers(obj["faceIndex"], f"{where}.faceIndex",
-                                               code=Code.ANCHOR_ACCESSOR_FORMAT))
+        if counts_key in obj:
+            face = _faces_from_counts(r.integers(obj[counts_key], f"{where}.{counts_key}",
+                                                 code=Code.ANCHOR_ACCESSOR_FORMAT),
+                                      mesh.face_count, count, f"{where}.{counts_key}",
+                                      f"{pointer}/{counts_key}")
+        else:
+            face = checked("faceIndex", r.integers(obj["faceIndex"], f"{where}.faceIndex",
+                                                   code=Code.ANCHOR_ACCESSOR_FORMAT))
         if face.size and int(face.max()) >= mesh.face_count:
             raise gltf_error(Code.ANCHOR_FACE_OUT_OF_RANGE, f"{where}.faceIndex value "
                              f"{int(face.max())} out of range for an anchor mesh with "
                              f"{mesh.face_count} triangles", f"{pointer}/faceIndex")
-        bary = floats("barycentrics")
         if profile == "games":
+            bary = floats("barycentrics")
             if "deformation" in obj:
                 raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where}: 'deformation' must not "
                                  f"be present with the games profile", f"{pointer}/deformation")
@@ -214,6 +279,11 @@ class SplatReader:
         if deformation not in DEFORMATIONS:
             raise gltf_error(Code.ANCHOR_SCHEMA_VIOLATION, f"{where}.deformation must be "
                              f"'affine' or 'rigid', got {deformation!r}", f"{pointer}/deformation")
+        if derived:
+            face_key = counts_key if counts_key in obj else "faceIndex"
+            return Anchoring(mesh, _derived_anchors(mesh, face, rest, deformation, where,
+                                                    f"{pointer}/{face_key}"))
+        bary = floats("barycentrics")
         offset = floats("normalOffset")
         _, ctype, _ = r.raw(obj["localRotation"], f"{where}.localRotation", ("VEC4",),
                             code=Code.ANCHOR_ACCESSOR_FORMAT)
@@ -296,7 +366,7 @@ class SplatReader:
             raise gltf_error(Code.KHR_PROPERTY_INVALID, f"{where}: {KHR}.extensions must be an "
                              f"object", f"{kpointer}/extensions")
         if nested and EXTENSION in nested:
-            anchoring = self.anchoring(nested[EXTENSION], count, where,
+            anchoring = self.anchoring(nested[EXTENSION], cloud, where,
                                        f"{kpointer}/extensions/{EXTENSION}")
         required = self.document.doc.get("extensionsRequired")
         return SplatPrimitive(cloud, anchoring, name, _khr_properties(

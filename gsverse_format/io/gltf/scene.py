@@ -9,12 +9,14 @@ import numpy as np
 from ... import quaternion as quat
 from ...codes import Code
 from ...errors import FormatError
+from ...limits import MAX_SCENE_INSTANCES, MAX_SCENE_TRIANGLES, MAX_SCENE_VERTICES
 from ...model import TriangleMesh
 from .container import DEFAULT_MAX_BYTES, as_index, gltf_error, is_int
 from .document import Document, open_document
 from .reader import TRIANGLES, SplatReader, input_errors
 
-__all__ = ["mesh_instances", "read_gltf_triangles"]
+__all__ = ["check_instancing", "instance_counts", "mesh_instances", "node_instances",
+           "read_gltf_triangles"]
 
 
 def _array(value: Any, what: str, pointer: str) -> list:
@@ -52,18 +54,19 @@ def _node_matrix(nodes: list, i: int) -> np.ndarray:
 def mesh_instances(doc: dict) -> list[tuple[int, np.ndarray]]:
     """(mesh index, global matrix) for every node of the default scene that has a mesh.
 
-    Without scenes, every mesh once with the identity. Node cycles are an error.
+    Without scenes, every mesh once with the identity. Node cycles are an error, and so is a
+    node graph that instantiates more meshes than :data:`~gsverse_format.limits.
+    MAX_SCENE_INSTANCES` (counted before anything is expanded, see :func:`instance_counts`).
     """
     return [(m, world) for _, m, world in node_instances(doc)]
 
 
-def node_instances(doc: dict) -> list[tuple[int | None, int, np.ndarray]]:
-    """(node index or None, mesh index, global matrix), as :func:`mesh_instances`."""
+def _scene_roots(doc: dict) -> tuple[list, list[int], int] | None:
+    """(nodes, root node indices, scene index) of the default scene; None without scenes."""
     nodes = _array(doc.get("nodes"), "nodes", "/nodes")
-    meshes = _array(doc.get("meshes"), "meshes", "/meshes")
     scenes = _array(doc.get("scenes"), "scenes", "/scenes")
     if not scenes:
-        return [(None, m, np.eye(4)) for m in range(len(meshes))]
+        return None
     chosen = doc.get("scene")
     s = chosen if isinstance(chosen, int) and is_int(chosen) and 0 <= chosen < len(scenes) else 0
     scene = scenes[s]
@@ -71,28 +74,159 @@ def node_instances(doc: dict) -> list[tuple[int | None, int, np.ndarray]]:
         raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"scenes[{s}] must be an object",
                          f"/scenes/{s}")
     roots = _array(scene.get("nodes"), f"scenes[{s}].nodes", f"/scenes/{s}/nodes")
+    return nodes, [as_index(n, len(nodes), "scene node", f"/scenes/{s}/nodes/{k}")
+                   for k, n in enumerate(roots)], s
+
+
+def _children(nodes: list, i: int) -> list[int]:
+    node = nodes[i]
+    if not isinstance(node, dict):
+        raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"nodes[{i}] must be an object",
+                         f"/nodes/{i}")
+    children = _array(node.get("children"), f"nodes[{i}].children", f"/nodes/{i}/children")
+    return [as_index(c, len(nodes), f"nodes[{i}].children", f"/nodes/{i}/children/{k}")
+            for k, c in enumerate(children)]
+
+
+def instance_counts(doc: dict) -> dict[int, int]:
+    """node index -> how many times the default scene reaches it (paths from its roots).
+
+    Dynamic programming over the node graph in topological order, nothing expanded: a node
+    graph where each node lists the next one several times (legal JSON, an exponential
+    number of paths) costs one pass over its edges. Counts saturate just above
+    :data:`~gsverse_format.limits.MAX_SCENE_INSTANCES`. A cycle is an error
+    (``GLTF_SCHEMA_VIOLATION`` at the node that closes it). Without scenes: empty.
+    """
+    found = _scene_roots(doc)
+    if found is None:
+        return {}
+    nodes, roots, _ = found
+    children: dict[int, list[int]] = {}
+    state: dict[int, int] = {}  # 1: on the current path, 2: done
+    order: list[int] = []       # post-order: every node after all of its descendants
+    for root in roots:
+        if root in state:
+            continue
+        state[root] = 1
+        children[root] = _children(nodes, root)
+        stack = [(root, 0)]
+        while stack:
+            i, k = stack[-1]
+            if k < len(children[i]):
+                stack[-1] = (i, k + 1)
+                c = children[i][k]
+                seen = state.get(c)
+                if seen == 1:
+                    raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, f"the node hierarchy has a "
+                                     f"cycle: nodes[{i}] lists its ancestor nodes[{c}] as a "
+                                     f"child", f"/nodes/{i}/children/{k}")
+                if seen is None:
+                    state[c] = 1
+                    children[c] = _children(nodes, c)
+                    stack.append((c, 0))
+            else:
+                state[i] = 2
+                order.append(i)
+                stack.pop()
+    cap = MAX_SCENE_INSTANCES + 1
+    counts: dict[int, int] = dict.fromkeys(order, 0)
+    for root in roots:
+        counts[root] = min(cap, counts[root] + 1)
+    for i in reversed(order):
+        for c in children[i]:
+            counts[c] = min(cap, counts[c] + counts[i])
+    return counts
+
+
+def _primitive_size(doc: dict, prim: Any) -> tuple[int, int]:
+    """(vertices, triangles) a TRIANGLES primitive declares (0, 0 for other modes), read from
+    the accessor counts of the raw JSON; nothing is decoded."""
+    if not isinstance(prim, dict) or prim.get("mode", TRIANGLES) != TRIANGLES:
+        return 0, 0
+    accessors = doc.get("accessors")
+    accessors = accessors if isinstance(accessors, list) else []
+
+    def count(ref: Any) -> int:
+        if is_int(ref) and 0 <= ref < len(accessors) and isinstance(accessors[ref], dict):
+            value = accessors[ref].get("count")
+            return int(value) if is_int(value) and value > 0 else 0
+        return 0
+
+    attrs = prim.get("attributes")
+    vertices = count(attrs.get("POSITION")) if isinstance(attrs, dict) else 0
+    indices = prim.get("indices")
+    return vertices, (count(indices) if indices is not None else vertices) // 3
+
+
+def check_instancing(doc: dict) -> None:
+    """Raise ``SIZE_LIMIT_EXCEEDED`` when flattening the default scene would visit more node
+    instances, or make more mesh instances, vertices or triangles, than the limits of
+    :mod:`gsverse_format.limits` (counted by :func:`instance_counts` and the accessor counts,
+    before any expansion); ``GLTF_SCHEMA_VIOLATION`` for a node cycle."""
+    meshes = _array(doc.get("meshes"), "meshes", "/meshes")
+    found = _scene_roots(doc)
+    uses: list[tuple[int | None, Any, int]]
+    if found is None:
+        uses = [(None, m, 1) for m in range(len(meshes))]
+    else:
+        nodes = found[0]
+        counts = instance_counts(doc)
+        visits = 0
+        for node, n in counts.items():  # every node visit costs a matrix, mesh or not
+            visits += n
+            if visits > MAX_SCENE_INSTANCES:
+                raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the scene's node graph expands to "
+                                 f"more than {MAX_SCENE_INSTANCES} node instances (nodes listed "
+                                 f"as children several times)", f"/nodes/{node}")
+        uses = [(i, nodes[i]["mesh"], n) for i, n in counts.items()
+                if n and nodes[i].get("mesh") is not None]
+    instances = vertices = triangles = 0
+    for i, m, n in uses:
+        instances += n
+        if instances > MAX_SCENE_INSTANCES:
+            raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the scene instantiates meshes more "
+                             f"than {MAX_SCENE_INSTANCES} times (node graph expanded by "
+                             f"repeated children)", f"/nodes/{i}")
+        if not (is_int(m) and 0 <= m < len(meshes)) or not isinstance(meshes[m], dict):
+            continue  # reported where the instance is expanded
+        prims = meshes[m].get("primitives")
+        for prim in prims if isinstance(prims, list) else []:
+            v, t = _primitive_size(doc, prim)
+            vertices += n * v
+            triangles += n * t
+        if vertices > MAX_SCENE_VERTICES or triangles > MAX_SCENE_TRIANGLES:
+            raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the scene's instances hold more than "
+                             f"{MAX_SCENE_VERTICES} vertices or {MAX_SCENE_TRIANGLES} triangles "
+                             f"(the limits of a flattened mesh)",
+                             f"/nodes/{i}" if i is not None else f"/meshes/{m}")
+
+
+def node_instances(doc: dict) -> list[tuple[int | None, int, np.ndarray]]:
+    """(node index or None, mesh index, global matrix), as :func:`mesh_instances`."""
+    meshes = _array(doc.get("meshes"), "meshes", "/meshes")
+    found = _scene_roots(doc)
+    if found is None:
+        return [(None, m, np.eye(4)) for m in range(len(meshes))]
+    nodes, roots, _ = found
+    if sum(instance_counts(doc).values()) > MAX_SCENE_INSTANCES:  # cycles, before expanding
+        check_instancing(doc)  # raises, naming the limit
     out: list[tuple[int | None, int, np.ndarray]] = []
-    stack = [(as_index(n, len(nodes), "scene node", f"/scenes/{s}/nodes/{k}"), np.eye(4), 0)
-             for k, n in enumerate(roots)]
+    stack = [(i, np.eye(4)) for i in roots]
     while stack:
-        i, parent, depth = stack.pop()
-        if depth > len(nodes):
-            raise gltf_error(Code.GLTF_SCHEMA_VIOLATION, "the node hierarchy has a cycle",
-                             f"/nodes/{i}")
+        i, parent = stack.pop()
         node = nodes[i]
         world = parent @ _node_matrix(nodes, i)
         if node.get("mesh") is not None:
             out.append((i, as_index(node["mesh"], len(meshes), f"nodes[{i}].mesh",
                                     f"/nodes/{i}/mesh"), world))
-        children = _array(node.get("children"), f"nodes[{i}].children", f"/nodes/{i}/children")
-        for k, child in enumerate(children):
-            stack.append((as_index(child, len(nodes), f"nodes[{i}].children",
-                                   f"/nodes/{i}/children/{k}"), world, depth + 1))
+        for child in _children(nodes, i):
+            stack.append((child, world))
     return out
 
 
 def scene_triangles(document: Document) -> TriangleMesh:
     """All TRIANGLES primitives of the default scene of an opened document as one mesh."""
+    check_instancing(document.doc)  # limits checked on the raw JSON, before expanding
     reader = SplatReader(document)
     vertices, faces, offset = [], [], 0
     for m, world in mesh_instances(document.doc):

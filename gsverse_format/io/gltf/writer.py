@@ -13,7 +13,9 @@ Layout written (one glTF mesh per splat primitive, then one per anchor mesh):
   fallback (UNSIGNED_BYTE normalized VEC4, linear RGB + opacity); instantiated by one node;
 * anchor mesh: one ``TRIANGLES`` primitive (FLOAT ``POSITION`` + indices), instantiated by no
   node; several anchored primitives share it when they share the :class:`TriangleMesh` object;
-* anchor accessors: referenced only from the extension JSON; their buffer views have no target.
+* anchor accessors: referenced only from the extension JSON; their buffer views have no target;
+  with ``anchors="compact"`` (extension 1.2) ``faceCounts`` (one count per triangle, the splats
+  grouped by face) and, for ``local``, nothing else (derived from the rest pose by readers).
 
 All data live in one buffer: the GLB ``BIN`` chunk, or a base64 ``data:`` URI for ``.gltf``.
 :class:`BufferBuilder` (one buffer, one aligned buffer view per accessor, plain JSON objects)
@@ -22,9 +24,11 @@ is also what the conformance suite builds its hand-made assets with.
 from __future__ import annotations
 
 import base64
+import io
 import json
 import math
 import os
+import struct
 from dataclasses import dataclass
 from typing import Any, Iterable
 
@@ -36,27 +40,44 @@ from ...atomic import atomic_write
 from ...errors import GsverseError, UsageError
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                       SplatPrimitive, TriangleMesh, check_primitive)
+from ...anchors_derive import degenerate_splats
 from ...quaternion import unit_quaternions
 from ...rig import AnchorRig
+from ...vocabulary import ANCHOR_ENCODINGS as VOCAB_ENCODINGS
 from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, NODE_VISIBILITY, SH_C0, SHORT,
                            UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT)
 from .accessors import COMPONENT_DTYPES
-from .container import glb_bytes
+from .container import CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, glb_bytes
 from .rig import RigOutput, write_rig
 from .reader import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
 
-__all__ = ["ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER", "QUANTIZE_OPTIONS", "BufferBuilder",
-           "asset_to_gltf", "gltf_to_bytes", "write_gltf"]
+__all__ = ["ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER", "QUANTIZE_OPTIONS", "QUANTIZE_BITS",
+           "ANCHOR_ENCODINGS", "quantize_notes", "BufferBuilder",
+           "asset_to_gltf", "gltf_to_bytes", "write_glb", "write_gltf"]
 
 #: bufferView targets.
 ARRAY_BUFFER, ELEMENT_ARRAY_BUFFER = 34962, 34963
 
 #: Component-type choices for ``quantize=``: property -> {option: (componentType, scale)}.
+#: ``ROTATION`` is the rest pose's ``KHR_gaussian_splatting:ROTATION`` (the normalized types
+#: that extension allows), quantized only where no stored anchor depends on it: plain
+#: primitives and derived ``local`` anchors (compact). Explicit anchors fix the rest pose to
+#: their remap (spec §Rest-pose consistency), which a quantized ``ROTATION`` would miss by a
+#: quantization step. (``OPACITY``, SCALAR, gains nothing: glTF aligns every vertex attribute
+#: element to 4 bytes, the size of a FLOAT.)
 QUANTIZE_OPTIONS: dict[str, dict[str, tuple[int, float] | None]] = {
     "barycentrics": {"float": None, "unsigned_short": (UNSIGNED_SHORT, 65535.0),
                      "unsigned_byte": (UNSIGNED_BYTE, 255.0)},
     "localRotation": {"float": None, "short": (SHORT, 32767.0), "byte": (BYTE, 127.0)},
+    "ROTATION": {"float": None, "short": (SHORT, 32767.0), "byte": (BYTE, 127.0)},
 }
+#: ``gsverse-convert --quantize BITS``: the ``quantize=`` choices of each bit depth.
+QUANTIZE_BITS: dict[int, dict[str, str]] = {
+    16: {"barycentrics": "unsigned_short", "localRotation": "short", "ROTATION": "short"},
+    8: {"barycentrics": "unsigned_byte", "localRotation": "byte", "ROTATION": "byte"},
+}
+#: ``anchors=`` choices: the version 1.1 layout, or ``faceCounts`` + derived ``local`` anchors.
+ANCHOR_ENCODINGS = VOCAB_ENCODINGS
 
 def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     """IEC 61966-2-1 sRGB decoding of values in [0, 1]."""
@@ -75,44 +96,78 @@ def _fallback_color(cloud: SplatCloud) -> np.ndarray:
 class BufferBuilder:
     """One binary buffer with one 4-byte-aligned bufferView per accessor.
 
-    ``views`` and ``accessors`` are plain glTF JSON objects; ``blob`` is the buffer so far
-    (:meth:`finish` pads it and returns it).
+    ``views`` and ``accessors`` are plain glTF JSON objects. The data are not copied when
+    added: the builder keeps the arrays (converted to their component type only when the
+    buffer is written, a few MiB at a time), so they must not change until then.
+    :meth:`write_to` streams the buffer into a file; :meth:`finish` returns it as bytes.
+    ``length`` is the buffer's length so far.
     """
 
+    #: Bytes converted at a time when the buffer is written.
+    WRITE_BLOCK = 4 << 20
+
     def __init__(self) -> None:
-        self.blob = bytearray()
+        self.length = 0
         self.views: list[dict[str, Any]] = []
         self.accessors: list[dict[str, Any]] = []
+        self._parts: list[tuple[int, np.ndarray, np.dtype]] = []
 
     def add(self, array: Any, ctype: int, gtype: str, *, normalized: bool = False,
             target: int | None = None, minmax: bool = False) -> int:
         """Append ``array`` (first axis: elements) as an accessor of component type
         ``ctype`` and type ``gtype`` in a new buffer view; returns the accessor's index.
         ``minmax`` records the accessor's ``min``/``max`` (required for ``POSITION``)."""
-        data = np.ascontiguousarray(np.asarray(array), dtype=COMPONENT_DTYPES[ctype])
-        count = int(data.shape[0])
-        self.blob += b"\0" * (-len(self.blob) % 4)
-        view: dict[str, Any] = {"buffer": 0, "byteOffset": len(self.blob),
-                                "byteLength": int(data.nbytes)}
+        source = np.asarray(array)
+        if source.ndim == 0:
+            source = source.reshape(1)
+        dtype = COMPONENT_DTYPES[ctype]
+        count = int(source.shape[0])
+        nbytes = int(source.size) * dtype.itemsize
+        self.length += -self.length % 4
+        view: dict[str, Any] = {"buffer": 0, "byteOffset": self.length, "byteLength": nbytes}
         if target is not None:
             view["target"] = target
-        self.blob += data.tobytes()
+        self._parts.append((self.length, source, dtype))
+        self.length += nbytes
         self.views.append(view)
         acc: dict[str, Any] = {"bufferView": len(self.views) - 1, "componentType": ctype,
                                "count": count, "type": gtype}
         if normalized:
             acc["normalized"] = True
         if minmax:
-            flat = data.reshape(count, -1).astype(np.float64)
+            flat = np.asarray(source, dtype).reshape(count, -1)
             acc["min"] = [float(v) for v in flat.min(axis=0)]
             acc["max"] = [float(v) for v in flat.max(axis=0)]
         self.accessors.append(acc)
         return len(self.accessors) - 1
 
+    def pad(self) -> int:
+        """Pad the buffer to a multiple of 4 bytes; returns its length."""
+        self.length += -self.length % 4
+        return self.length
+
+    def write_to(self, handle: Any) -> int:
+        """Write the buffer, padded to a multiple of 4 bytes, to the binary file ``handle``
+        part by part; returns the number of bytes written."""
+        written = 0
+        for offset, source, dtype in self._parts:
+            if offset > written:
+                handle.write(b"\0" * (offset - written))
+                written = offset
+            rows = max(1, self.WRITE_BLOCK // max(1, source[:1].size * dtype.itemsize))
+            for start in range(0, len(source), rows):
+                block = np.ascontiguousarray(source[start:start + rows], dtype)
+                handle.write(block.reshape(-1).view(np.uint8).data)
+                written += block.nbytes
+        end = self.pad()
+        handle.write(b"\0" * (end - written))
+        return end
+
     def finish(self) -> bytes:
         """The buffer, padded to a multiple of 4 bytes."""
-        self.blob += b"\0" * (-len(self.blob) % 4)
-        return bytes(self.blob)
+        out = io.BytesIO()
+        self.write_to(out)
+        return out.getvalue()
 
 
 def _check_quantize(quantize: dict | None) -> dict[str, tuple[int, float] | None]:
@@ -127,24 +182,48 @@ def _check_quantize(quantize: dict | None) -> dict[str, tuple[int, float] | None
     return chosen
 
 
+def _check_encoding(anchors: str) -> bool:
+    """True for ``compact`` anchors; :class:`UsageError` for an unknown encoding."""
+    if anchors not in ANCHOR_ENCODINGS:
+        raise UsageError(f"anchors must be one of {', '.join(ANCHOR_ENCODINGS)}, got {anchors!r}")
+    return anchors == "compact"
+
+
 @dataclass
 class _EncodedAnchors:
     """Anchor data as the writer stores them: normalized-integer codes for the quantized
-    properties (None: stored as FLOAT), and ``anchors`` as a reader dequantizes them."""
+    properties (None: stored as FLOAT), and ``anchors`` as a reader dequantizes them.
+    ``counts`` (compact): splats per face, the splats grouped by face in face order;
+    ``derived`` (compact ``local``): only the faces are stored, the rest is derived from the
+    rest pose (spec §Derived `local` anchors)."""
 
     anchors: LocalAnchors | GamesAnchors
     barycentrics: tuple[np.ndarray, int] | None = None
     local_rotation: tuple[np.ndarray, int] | None = None
+    counts: np.ndarray | None = None
+    derived: bool = False
+
+
+def _bary_in_unit_range(bary: np.ndarray) -> bool:
+    return bool(np.all((bary >= 0.0) & (bary <= 1.0)))
 
 
 def _encode_anchors(anchors: LocalAnchors | GamesAnchors,
-                    quant: dict[str, tuple[int, float] | None]) -> _EncodedAnchors:
+                    quant: dict[str, tuple[int, float] | None], *, faces: int = 0,
+                    compact: bool = False) -> _EncodedAnchors:
     """Quantize the anchors as ``quant`` asks; dequantize the codes as glTF 2.0 §3.11 says
-    (``c / 255``, ``max(c / 127, -1)``, ...; quaternions renormalized, as readers do)."""
-    out = _EncodedAnchors(anchors)
+    (``c / 255``, ``max(c / 127, -1)``, ...; quaternions renormalized, as readers do).
+    ``compact`` anchors (sorted by face already) store ``faces`` counts, and ``local`` ones
+    nothing else: derived anchors have no quantization error."""
+    counts = None
+    if compact:
+        counts = np.bincount(anchors.face_index.astype(np.int64), minlength=faces)
+        if isinstance(anchors, LocalAnchors):
+            return _EncodedAnchors(anchors, counts=counts, derived=True)
+    out = _EncodedAnchors(anchors, counts=counts)
     bary = anchors.barycentrics
     q = quant.get("barycentrics")
-    if q is not None and bool(np.all((bary >= 0.0) & (bary <= 1.0))):
+    if q is not None and _bary_in_unit_range(bary):
         ctype, top = q
         codes = np.round(bary.astype(np.float64) * top)
         out.barycentrics = (codes, ctype)
@@ -164,9 +243,53 @@ def _encode_anchors(anchors: LocalAnchors | GamesAnchors,
     return out
 
 
+def _sorted_for_counts(prim: SplatPrimitive, i: int) -> tuple[SplatCloud, Anchoring]:
+    """The splats and anchors of ``prim`` grouped by face in face order (stable), as
+    ``faceCounts`` stores them; :class:`UsageError` where ``local`` anchors could not be
+    derived back (splats on faces degenerate at rest)."""
+    anchoring = prim.anchoring
+    assert anchoring is not None
+    anchors, c = anchoring.anchors, prim.splats
+    face = anchors.face_index.astype(np.int64)
+    if face.size > 1 and bool(np.any(face[1:] < face[:-1])):
+        order = np.argsort(face, kind="stable")
+        c = c.subset(order)
+        anchors = anchors.subset(order)
+    if isinstance(anchors, LocalAnchors):
+        bad = degenerate_splats(anchoring.mesh, anchors.face_index)
+        if bad.size:
+            raise UsageError(f"primitive {i}: {bad.size} splat(s) are bound to triangles "
+                             f"degenerate at rest (face {int(anchors.face_index[bad[0]])}); "
+                             f"compact anchors cannot derive them: write explicit anchors")
+    return c, Anchoring(anchoring.mesh, anchors)
+
+
+def quantize_notes(asset: SplatAsset, quantize: dict | None,
+                   anchors: str = "explicit") -> list[str]:
+    """What ``quantize`` leaves as FLOAT when ``asset`` is written (one line each): explicit
+    barycentrics outside [0, 1], which no normalized unsigned type holds."""
+    quant = _check_quantize(quantize)
+    if quant.get("barycentrics") is None:
+        return []
+    compact = _check_encoding(anchors)
+    notes = []
+    for i, prim in enumerate(asset.primitives):
+        a = prim.anchoring
+        if a is None or (compact and isinstance(a.anchors, LocalAnchors)):
+            continue
+        bary = a.anchors.barycentrics
+        if not _bary_in_unit_range(bary):
+            outside = int(np.count_nonzero(np.any((bary < 0.0) | (bary > 1.0), axis=1)))
+            notes.append(f"primitive {i}: barycentrics stay FLOAT: {outside} of {len(bary)} "
+                         f"splats have barycentrics outside [0, 1] (--anchors compact stores "
+                         f"none for the local profile)")
+    return notes
+
+
 def _rest_pose_of(c: SplatCloud, mesh: TriangleMesh, encoded: _EncodedAnchors) -> SplatCloud:
     """The splats with the rest pose remapped from the anchors as stored (spec §Rest-pose
-    consistency), for quantized anchors; otherwise the splats unchanged."""
+    consistency), for quantized anchors; otherwise (derived anchors included: they come from
+    the rest pose) the splats unchanged."""
     if encoded.barycentrics is None and encoded.local_rotation is None:
         return c
     from ...remap_reference import remap
@@ -177,14 +300,24 @@ def _rest_pose_of(c: SplatCloud, mesh: TriangleMesh, encoded: _EncodedAnchors) -
                       dict(c.extra))
 
 
+def _index_type(largest: int) -> int:
+    """The smallest unsigned component type holding ``largest``."""
+    return UNSIGNED_BYTE if largest < 256 else UNSIGNED_SHORT if largest < 65536 else UNSIGNED_INT
+
+
 def _write_anchors(b: BufferBuilder, faces: int, encoded: _EncodedAnchors,
                    splats: SplatCloud, mesh_index: int, scale_accessor: int) -> dict[str, Any]:
     anchors = encoded.anchors
-    ftype = UNSIGNED_BYTE if faces <= 256 else UNSIGNED_SHORT if faces <= 65536 else UNSIGNED_INT
     obj: dict[str, Any] = {"mesh": mesh_index, "primitive": 0, "profile": anchors.profile}
     if isinstance(anchors, LocalAnchors):
         obj["deformation"] = anchors.deformation
-    obj["faceIndex"] = b.add(anchors.face_index, ftype, "SCALAR")
+    if encoded.counts is not None:
+        largest = int(encoded.counts.max()) if encoded.counts.size else 0
+        obj["faceCounts"] = b.add(encoded.counts, _index_type(largest), "SCALAR")
+    else:
+        obj["faceIndex"] = b.add(anchors.face_index, _index_type(max(faces - 1, 0)), "SCALAR")
+    if encoded.derived:
+        return obj
     if encoded.barycentrics is not None:
         codes, ctype = encoded.barycentrics
         obj["barycentrics"] = b.add(codes, ctype, "VEC2", normalized=True)
@@ -204,6 +337,17 @@ def _write_anchors(b: BufferBuilder, faces: int, encoded: _EncodedAnchors,
     else:
         obj["rho"] = b.add(anchors.rho, FLOAT, "SCALAR")
     return obj
+
+
+def _rest_rotation(b: BufferBuilder, rotations: np.ndarray, q: tuple[int, float] | None) -> int:
+    """The rest ``ROTATION`` (unit quaternions) as FLOAT, or as the normalized signed type
+    ``q`` (codes rounded, clipped to ±top; VEC4 of 8 or 4 bytes keeps the 4-byte alignment
+    glTF requires of vertex attributes)."""
+    if q is None:
+        return b.add(rotations, FLOAT, "VEC4", target=ARRAY_BUFFER)
+    ctype, top = q
+    codes = np.clip(np.round(np.asarray(rotations, np.float64) * top), -top, top)
+    return b.add(codes, ctype, "VEC4", normalized=True, target=ARRAY_BUFFER)
 
 
 def _khr_object(prim: SplatPrimitive, c: SplatCloud) -> dict[str, Any]:
@@ -243,7 +387,8 @@ def _collider_meshes(b: BufferBuilder, asset: SplatAsset, anchor_mesh_index: dic
     return out
 
 
-def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltflib.GLTF2:
+def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None,
+                  anchors: str = "explicit") -> pygltflib.GLTF2:
     """The glTF document for ``asset``; its binary buffer is set as the binary blob.
 
     ``quantize`` optionally stores anchor accessors as normalized integers:
@@ -253,9 +398,27 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     pose is then the remap of the anchors as stored (dequantized), so that the asset stays
     self-consistent (spec §Rest-pose consistency); the move is at most about half a
     quantization step of each property (for 8-bit barycentrics, 1/510 of a triangle edge).
+    ``quantize`` also takes the rest pose's ``ROTATION`` (see
+    :data:`QUANTIZE_OPTIONS`; :data:`QUANTIZE_BITS` per bit depth).
+
+    ``anchors="compact"`` (extension version 1.2) stores ``faceCounts`` instead of
+    ``faceIndex``, the splats of each anchored primitive grouped by face in face order (a
+    stable sort when they are not), and for the ``local`` profile no other anchor data: readers
+    derive them from the rest pose (spec §Derived `local` anchors). ``"explicit"`` (default)
+    is the version 1.1 layout.
     Raises :class:`UsageError` for data glTF cannot hold.
     """
+    gltf, buffer = _gltf_document(asset, quantize=quantize, anchors=anchors)
+    gltf.set_binary_blob(buffer.finish())
+    return gltf
+
+
+def _gltf_document(asset: SplatAsset, *, quantize: dict | None = None,
+                   anchors: str = "explicit") -> tuple[pygltflib.GLTF2, BufferBuilder]:
+    """:func:`asset_to_gltf` without the binary blob: the document and the builder holding
+    its buffer's data (which :func:`write_gltf` streams into the file)."""
     quant = _check_quantize(quantize)
+    compact = _check_encoding(anchors)
     prims = list(asset.primitives)
     for i, prim in enumerate(prims):
         check_primitive(i, prim)
@@ -281,11 +444,16 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
         c = prim.splats
         anchoring = prim.anchoring
         if anchoring is not None:
-            encoded = _encode_anchors(anchoring.anchors, quant)
+            if compact:
+                c, anchoring = _sorted_for_counts(prim, i)
+            encoded = _encode_anchors(anchoring.anchors, quant, faces=anchoring.mesh.face_count,
+                                      compact=compact)
             c = _rest_pose_of(c, anchoring.mesh, encoded)
+        # the rest ROTATION is quantized only where no stored anchor depends on it
+        rest_rotation = quant.get("ROTATION") if encoded is None or encoded.derived else None
         attrs: dict[str, int] = {"POSITION": b.add(c.means, FLOAT, "VEC3", target=ARRAY_BUFFER,
                                                    minmax=True)}
-        attrs[ROTATION] = b.add(unit_quaternions(c.rotations), FLOAT, "VEC4", target=ARRAY_BUFFER)
+        attrs[ROTATION] = _rest_rotation(b, unit_quaternions(c.rotations), rest_rotation)
         attrs[SCALE] = b.add(c.scales, FLOAT, "VEC3", target=ARRAY_BUFFER)
         attrs[OPACITY] = b.add(c.opacities, FLOAT, "SCALAR", target=ARRAY_BUFFER)
         for k in range(c.sh.shape[1]):
@@ -322,7 +490,7 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
     carried = sorted({name for prim in prims for name in prim.khr.extensions})
     used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried + \
         ([NODE_VISIBILITY] if rigs else [])
-    blob = b.finish()
+    length = b.pad()
     gltf = pygltflib.GLTF2(
         asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}"),
         extensionsUsed=used, scene=0,
@@ -332,9 +500,8 @@ def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None) -> pygltfl
         accessors=[pygltflib.Accessor(**{"byteOffset": 0, "normalized": None, "min": None,
                                           "max": None, **acc}) for acc in b.accessors],
         bufferViews=[pygltflib.BufferView(**view) for view in b.views],
-        buffers=[pygltflib.Buffer(byteLength=len(blob))] if blob else [])
-    gltf.set_binary_blob(blob)
-    return gltf
+        buffers=[pygltflib.Buffer(byteLength=length)] if length else [])
+    return gltf, b
 
 
 def _gltf_json(gltf: pygltflib.GLTF2, *, data_uri: bool) -> bytes:
@@ -343,6 +510,25 @@ def _gltf_json(gltf: pygltflib.GLTF2, *, data_uri: bool) -> bytes:
         payload = base64.b64encode(gltf.binary_blob() or b"").decode("ascii")
         doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + payload
     return json.dumps(doc, separators=(",", ":"), allow_nan=False).encode("utf-8")
+
+
+def write_glb(handle: Any, json_chunk: bytes, buffer: BufferBuilder) -> int:
+    """Write a GLB 2.0 container to the binary file ``handle``: the header, ``json_chunk``
+    (padded with spaces) and, when the buffer is not empty, a ``BIN`` chunk streamed from
+    ``buffer`` (padded with zeros); byte for byte what :func:`glb_bytes` builds in memory.
+    Returns the number of bytes written."""
+    text_pad = -len(json_chunk) % 4
+    text_length = len(json_chunk) + text_pad
+    bin_length = buffer.pad()
+    total = 12 + 8 + text_length + (8 + bin_length if bin_length else 0)
+    handle.write(struct.pack("<4sII", GLB_MAGIC, 2, total))
+    handle.write(struct.pack("<II", text_length, CHUNK_JSON))
+    handle.write(json_chunk)
+    handle.write(b" " * text_pad)
+    if bin_length:
+        handle.write(struct.pack("<II", bin_length, CHUNK_BIN))
+        buffer.write_to(handle)
+    return total
 
 
 def gltf_to_bytes(gltf: pygltflib.GLTF2, *, binary: bool = True) -> bytes:
@@ -354,19 +540,30 @@ def gltf_to_bytes(gltf: pygltflib.GLTF2, *, binary: bool = True) -> bytes:
 
 
 def write_gltf(asset: SplatAsset, path: str | os.PathLike, *,
-               protect: Iterable[str | os.PathLike] = (), quantize: dict | None = None) -> None:
+               protect: Iterable[str | os.PathLike] = (), quantize: dict | None = None,
+               anchors: str = "explicit") -> None:
     """Write ``asset`` to ``path``: ``.glb`` (binary) or ``.gltf`` (JSON, embedded buffer).
 
     The output is written atomically; ``protect`` lists input files it must not overwrite.
-    See :func:`asset_to_gltf` for ``quantize``.
+    See :func:`asset_to_gltf` for ``quantize`` and ``anchors``. A GLB is streamed into the
+    file (:func:`write_glb`): the buffer is never assembled in memory; the bytes are those
+    of ``gltf_to_bytes(asset_to_gltf(asset))``.
     """
     ext = os.path.splitext(os.fspath(path))[1].lower()
     if ext not in (".glb", ".gltf"):
         raise UsageError(f"glTF output must end in .glb or .gltf, not {ext or '(nothing)'}", path)
+    binary = ext == ".glb"
     try:
-        data = gltf_to_bytes(asset_to_gltf(asset, quantize=quantize), binary=ext == ".glb")
+        gltf, buffer = _gltf_document(asset, quantize=quantize, anchors=anchors)
+        if not binary:
+            gltf.set_binary_blob(buffer.finish())
+        text = _gltf_json(gltf, data_uri=not binary)
     except GsverseError as err:
         raise err.with_path(path) from None
+    del gltf
     with atomic_write(path, "wb", protect=tuple(protect)) as handle:
-        handle.write(data)
+        if binary:
+            write_glb(handle, text, buffer)
+        else:
+            handle.write(text)
 

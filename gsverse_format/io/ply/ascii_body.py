@@ -2,7 +2,11 @@
 
 Numbers are checked against their declared type (integers exactly, within range); declared
 counts that the body cannot hold are refused before anything is allocated, and values left
-over after the last element are an error.
+over after the last element are an error. The body is parsed in C into one float64 array (8
+bytes per value, list lengths included) and split into the elements from there; only a body
+holding a token that is not a plain number is split into Python tokens, to name the culprit.
+As in binary files, more than :data:`~.binary_body.MAX_RAGGED_ROWS` rows of lists of varying
+length are refused before they are parsed.
 """
 from __future__ import annotations
 
@@ -13,6 +17,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from ...errors import FormatError
+from .binary_body import MAX_RAGGED_ROWS
 from .header import PlyElement, PlyHeader, PlyProperty
 
 __all__ = ["read_ascii_body"]
@@ -32,10 +37,12 @@ def read_ascii_body(f: BinaryIO, header: PlyHeader, wanted: Collection[str] | No
                           f"{e.count} rows of at least {len(e.properties)} values, but only "
                           f"{len(body)} bytes of ascii data follow the header (truncated file?)",
                           path)
-    if not any(e.has_lists for e in header.elements):
-        values = _numbers(body)
-        if values is not None:
+    values = _numbers(body)
+    if values is not None:
+        if not any(e.has_lists for e in header.elements):
             return _table(values, header, tokens_needed, wanted, path)
+        return _number_elements(values, header, wanted, path)
+    # A token that is not a plain number: parse token by token to name it.
     tokens = body.split()
     total = len(tokens)
     pos = 0
@@ -137,6 +144,103 @@ def _table(values: np.ndarray, header: PlyHeader, needed: int, wanted: Collectio
     return out
 
 
+def _ragged_limit(element: PlyElement, path: str) -> None:
+    if element.count > MAX_RAGGED_ROWS:
+        raise FormatError(f"element {element.name!r} has lists of varying length in "
+                          f"{element.count} rows; at most {MAX_RAGGED_ROWS} such rows are read "
+                          "(each is held as a separate array)", path)
+
+
+def _number_elements(values: np.ndarray, header: PlyHeader, wanted: Collection[str] | None,
+                     path: str) -> dict[str, np.ndarray]:
+    """Split the numbers of an ASCII body with list properties into the elements."""
+    total = len(values)
+    pos = 0
+    out: dict[str, np.ndarray] = {}
+
+    def ends_early() -> FormatError:
+        return FormatError(f"ascii data ends early inside element {element.name!r}", path)
+
+    def length_at(i: int, p: PlyProperty) -> int:
+        if i >= total:
+            raise ends_early()
+        length = values[i]
+        if not float(length).is_integer():
+            raise FormatError(f"ascii data: list length of {element.name}.{p.name} is not an "
+                              "integer", path)
+        if length < 0:
+            raise FormatError(f"negative list length {int(length)} in {element.name}.{p.name}",
+                              path)
+        return int(length)
+
+    for element in header.elements:
+        props, count = element.properties, element.count
+        keep = wanted is None or element.name in wanted
+        if count == 0:
+            if keep:
+                out[element.name] = np.empty(0, element.native_dtype())
+            continue
+        # Every row shaped like the first one? (verified on the length columns at once)
+        lengths: dict[str, int | None] = {}
+        columns_at: list[tuple[PlyProperty, int]] = []
+        width = 0
+        for p in props:
+            columns_at.append((p, width))
+            if p.is_list:
+                lengths[p.name] = length_at(pos + width, p)
+                width += 1 + (lengths[p.name] or 0)
+            else:
+                width += 1
+        block = values[pos:pos + count * width].reshape(-1, width) \
+            if pos + count * width <= total else None
+        if block is not None and all(np.all(block[:, col] == lengths[p.name])
+                                     for p, col in columns_at if p.is_list):
+            if keep:
+                array = np.empty(count, element.native_dtype(lengths))
+                for p, col in columns_at:
+                    what = f"{element.name}.{p.name}"
+                    if p.is_list:
+                        stop = col + 1 + (lengths[p.name] or 0)
+                        array[p.name] = _from_float64(block[:, col + 1:stop], p.type, what, path)
+                    else:
+                        array[p.name] = _from_float64(block[:, col], p.type, what, path)
+                out[element.name] = array
+            pos += count * width
+            continue
+        _ragged_limit(element, path)
+        columns = {p.name: np.empty(count if keep else 0, object if p.is_list else np.float64)
+                   for p in props}
+        for row in range(count):
+            for p in props:
+                if p.is_list:
+                    length = length_at(pos, p)
+                    if pos + 1 + length > total:
+                        raise ends_early()
+                    if keep:
+                        columns[p.name][row] = values[pos + 1:pos + 1 + length]
+                    pos += 1 + length
+                else:
+                    if pos >= total:
+                        raise ends_early()
+                    if keep:
+                        columns[p.name][row] = values[pos]
+                    pos += 1
+        if keep:
+            for p in props:
+                what = f"{element.name}.{p.name}"
+                if p.is_list:
+                    for row in range(count):
+                        columns[p.name][row] = _from_float64(columns[p.name][row], p.type, what,
+                                                             path)
+                else:
+                    columns[p.name] = _from_float64(columns[p.name], p.type, what, path)
+            out[element.name] = element.assemble(columns)
+    if pos != total:
+        raise FormatError(f"{total - pos} values of ascii data after the last element: the "
+                          "declared counts do not match the data", path)
+    return out
+
+
 def _list_element(tokens: list[bytes], pos: int, element: PlyElement,
                   path: str) -> tuple[np.ndarray, int]:
     props, count, total = element.properties, element.count, len(tokens)
@@ -189,6 +293,7 @@ def _list_element(tokens: list[bytes], pos: int, element: PlyElement,
             return out, pos + count * width
 
     # General case: row by row.
+    _ragged_limit(element, path)
     raw: dict[str, list[Any]] = {p.name: [] for p in props}
     for _ in range(count):
         for p in props:

@@ -5,7 +5,8 @@
 ``uchar/uint8``, ``short/int16``, ``ushort/uint16``, ``int/int32``, ``uint/uint32``,
 ``float/float32``, ``double/float64``), properties in any order, ``comment`` and ``obj_info``
 lines, and list properties (for example the ``face`` element of a mesh). Each element becomes
-a structured numpy array in native byte order; a list property whose lists all have the same
+a structured numpy array in native byte order (from a binary body, a view of a copy-on-write
+memory map of the file where the byte order allows: see :mod:`.binary_body`); a list property whose lists all have the same
 length ``L`` becomes a sub-array field of shape ``(L,)``, otherwise an object field holding one
 array per row.
 

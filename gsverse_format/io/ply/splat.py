@@ -66,7 +66,7 @@ from __future__ import annotations
 
 import os
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -95,8 +95,8 @@ _DC = ("f_dc_0", "f_dc_1", "f_dc_2")
 _RGB = ("red", "green", "blue")
 _NORMALS = ("nx", "ny", "nz")
 _F_REST = re.compile(r"f_rest_(\d+)\Z")
-_COMPRESSED = ("compressed PLY (SuperSplat/PlayCanvas) is not supported yet; "
-               "decompress it first, e.g. with splat-transform")
+_COMPRESSED = ("compressed PLY (SuperSplat/PlayCanvas) is not the 3DGS PLY layout; "
+               "read it as compressed-ply (gsverse-convert --from compressed-ply)")
 
 
 def sh_degree_of(f_rest_count: int) -> int | None:
@@ -197,60 +197,84 @@ def _rows(k: int) -> str:
     return f"{k} row{'s' if k != 1 else ''}"
 
 
-def _column_gatherer(table: np.ndarray) -> Callable[[list[str]], np.ndarray]:
-    """``gather(names) -> (N, len(names))`` array of those scalar fields of ``table``.
+def _field_block(table: np.ndarray, names: list[str]) -> np.ndarray:
+    """The named scalar fields of ``table`` as an (N, len(names)) array: a view into its rows
+    when they are consecutive fields of one type (as in every 3DGS file), else a copy."""
+    fields: dict[str, Any] = dict(table.dtype.fields or {})
+    ftype, start = fields[names[0]][0], fields[names[0]][1]
+    if table.flags.c_contiguous and all(
+            fields[name][0] == ftype and fields[name][1] == start + i * ftype.itemsize
+            for i, name in enumerate(names)):
+        rows = table.view(np.uint8).reshape(len(table), table.dtype.itemsize)
+        return rows[:, start:start + len(names) * ftype.itemsize].view(ftype)
+    return np.stack([table[name] for name in names], axis=1)
 
-    When all fields share one type (the usual all-``float`` file) the rows are viewed as a 2-D
-    array and columns are picked without per-field copies.
-    """
-    dtype = table.dtype
-    fields = dtype.names or ()
-    first = dtype[0]
-    if all(dtype[i] == first for i in range(len(fields))) and \
-            dtype.itemsize == first.itemsize * len(fields):
-        index = {name: i for i, name in enumerate(fields)}
-        flat = table.view(first).reshape(len(table), len(fields))
-        return lambda names: flat[:, [index[name] for name in names]]
-    return lambda names: np.stack([table[name] for name in names], axis=1)
+
+def _all_finite(values: np.ndarray) -> bool:
+    """Whether every value is finite, without a temporary the size of ``values``."""
+    if values.dtype.kind != "f" or values.size == 0:
+        return True
+    return bool(np.isfinite(np.min(values)) and np.isfinite(np.max(values)))
 
 
 def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
     """Read a 3DGS splat PLY into a :class:`SplatCloud` (activated values, (x, y, z, w)
-    quaternions, coefficient-major SH). See the module docstring for the layout."""
+    quaternions, coefficient-major SH). See the module docstring for the layout.
+
+    The body is memory-mapped (:mod:`.binary_body`) and decoded straight into the model's
+    float32 arrays: the SH coefficients are copied once, from the file's rows into their
+    coefficient-major array; the float64 temporaries are per-splat scalars only.
+    """
     path = os.fspath(path)
     layout = _splat_layout(read_ply_header(path), path)
     vertex = read_ply_elements(path, elements=("vertex",))["vertex"]
     n = len(vertex)
-    gather = _column_gatherer(vertex)
     dc_names = list(_DC if layout.dc_source == "f_dc" else ())
     blocks = {"means": ["x", "y", "z"], "dc": dc_names, "rest": layout.f_rest,
               "opacity": ["opacity"], "scales": ["scale_0", "scale_1", "scale_2"],
-              "rot": ["rot_1", "rot_2", "rot_3", "rot_0"]}          # (w, x, y, z) → (x, y, z, w)
-    block = {key: gather(names) for key, names in blocks.items() if names}
-    bad = []
-    for key, names in blocks.items():
-        if names and block[key].dtype.kind == "f":
-            counts = np.count_nonzero(~np.isfinite(block[key]), axis=0)
-            bad += [(name, int(c)) for name, c in zip(names, counts) if c]
-    if bad:
-        listed = ", ".join(f"{name} ({_rows(k)})" for name, k in bad[:6])
-        more = f" and {len(bad) - 6} more properties" if len(bad) > 6 else ""
-        raise FormatError(f"{sum(k for _, k in bad)} NaN or Inf values in required properties: "
-                          f"{listed}{more}", path)
+              "rot": ["rot_0", "rot_1", "rot_2", "rot_3"]}
+    block = {key: _field_block(vertex, names) for key, names in blocks.items() if names}
+    # Decode first into contiguous arrays, then check those (fast); only when a check fails
+    # are the file's columns searched, to name the properties.
+    k = (layout.sh_degree + 1) ** 2
+    sh = np.empty((n, k, 3), np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
+        means = np.array(block["means"], np.float32)
+        if layout.dc_source == "f_dc":
+            sh[:, 0, :] = block["dc"]
+        if k > 1:  # channel-major (N, 3·(K−1)) → (N, K−1, 3), one strided copy
+            sh[:, 1:, :] = block["rest"].reshape(n, 3, k - 1).transpose(0, 2, 1)
+        logit = block["opacity"][:, 0].astype(np.float64)  # NaN is refused below, not warned
+        log_scales = block["scales"].astype(np.float64)
+        q = block["rot"].astype(np.float64)[:, [1, 2, 3, 0]]      # (w, x, y, z) → (x, y, z, w)
+    decoded = (means, sh if layout.dc_source == "f_dc" else sh[:, 1:, :], logit, log_scales, q)
+    if not all(_all_finite(values) for values in decoded):
+        bad = []
+        for key, names in blocks.items():
+            if names and not bool(np.all(np.isfinite(block[key]))):
+                counts = np.count_nonzero(~np.isfinite(block[key]), axis=0)
+                bad += [(name, int(c)) for name, c in zip(names, counts) if c]
+        if bad:
+            listed = ", ".join(f"{name} ({_rows(k)})" for name, k in bad[:6])
+            more = f" and {len(bad) - 6} more properties" if len(bad) > 6 else ""
+            raise FormatError(f"{sum(k for _, k in bad)} NaN or Inf values in required "
+                              f"properties: {listed}{more}", path)
+
+    def overflow(out: np.ndarray, what: str) -> None:
+        """Refuse values that became infinite in float32 (the input's are finite)."""
+        if not _all_finite(out):
+            raise FormatError(f"{int(np.count_nonzero(~np.isfinite(out)))} value(s) of {what} "
+                              "exceed the float32 range", path)
 
     def f32(values: np.ndarray, what: str) -> np.ndarray:
         with np.errstate(over="ignore"):
             out = values.astype(np.float32, copy=False)
-        if not np.all(np.isfinite(out)):
-            raise FormatError(f"{int(np.count_nonzero(~np.isfinite(out)))} value(s) of {what} "
-                              "exceed the float32 range", path)
+        overflow(out, what)
         return out
 
-    means = f32(block["means"], "x, y, z")
-    k = (layout.sh_degree + 1) ** 2
-    sh = np.empty((n, k, 3), np.float32)
+    overflow(means, "x, y, z")
     if layout.dc_source == "f_dc":
-        sh[:, 0, :] = f32(block["dc"], "f_dc")
+        overflow(sh[:, 0, :], "f_dc")
     else:
         for c, name in enumerate(_RGB):
             values = vertex[name].astype(np.float64)
@@ -260,28 +284,38 @@ def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
             elif not np.all(np.isfinite(values)):
                 raise FormatError(f"NaN or Inf values in {name}", path)
             sh[:, 0, c] = f32((values - 0.5) / SH_C0, name)
-    if k > 1:  # channel-major (N, 3·(K−1)) → (N, K−1, 3)
-        sh[:, 1:, :] = f32(block["rest"], "f_rest").reshape(n, 3, k - 1).transpose(0, 2, 1)
+    if k > 1:
+        overflow(sh[:, 1:, :], "f_rest")
 
-    opacities = _sigmoid(block["opacity"][:, 0]).astype(np.float32)
+    extra: dict[str, np.ndarray] = {}
+    for name in layout.extra:
+        source = vertex[name]
+        with np.errstate(over="ignore", invalid="ignore"):
+            extra[name] = source.astype(np.float32)
+        if source.dtype.kind == "f" and source.dtype.itemsize > 4 and \
+                not _all_finite(extra[name]):
+            grown = int(np.count_nonzero(np.isfinite(source) & ~np.isfinite(extra[name])))
+            if grown:
+                raise FormatError(f"{grown} value(s) of {name} exceed the float32 range", path)
+        del source
+    # No view into the file is left: its pages are released here, before the float64 work.
+    del block, vertex, decoded
+
+    opacities = _sigmoid(logit).astype(np.float32)
     with np.errstate(over="ignore"):
-        scales64 = np.exp(block["scales"].astype(np.float64))
-    scales = f32(scales64, "exp(scale_0..2) (log-scales above 88.72)")
+        np.exp(log_scales, out=log_scales)
+    scales = f32(log_scales, "exp(scale_0..2) (log-scales above 88.72)")
+    del logit, log_scales
 
-    q = block["rot"].astype(np.float64)
     peak = np.max(np.abs(q), axis=1, keepdims=True)
     zero = peak[:, 0] == 0.0
     if zero.any():
         first = int(np.flatnonzero(zero)[0])
         raise FormatError(f"{_rows(int(zero.sum()))} (first: row {first}) have a zero rotation "
                           "quaternion (rot_0..rot_3 all 0)", path)
-    q = q / peak
+    q /= peak
     q /= np.linalg.norm(q, axis=1, keepdims=True)
 
-    extra: dict[str, np.ndarray] = {}
-    for name in layout.extra:
-        with np.errstate(over="ignore", invalid="ignore"):
-            extra[name] = vertex[name].astype(np.float32)
     return SplatCloud(means, q.astype(np.float32), scales, opacities, sh, extra=extra)
 
 

@@ -3,9 +3,16 @@
 usd-core's binary reader can crash the process or exhaust its memory on some corrupted
 ``.usdc`` data (observed with usd-core 26.11). Here the file is read by a child interpreter
 with a memory cap and an optional time limit; its result comes back as JSON plus an
-uncompressed ``.npz`` of the arrays. A crash of the USD library in the child is a
-:class:`FormatError` (the file is corrupt); any other unexpected exception in the child is a
-bug, not bad input, and comes back as a :class:`UsdInternalError` naming its type.
+uncompressed ``.npz`` of the arrays. The limits (memory, and time when the caller gives
+none) are :data:`gsverse_format.limits.USD_CHILD_MEMORY_BASE` and
+:func:`gsverse_format.limits.usd_child_seconds`; the child's standard error goes to a file
+of which only the end is read (a corrupt file can make USD print hundreds of megabytes). A crash of the USD library in the child (a stack
+overflow on deeply nested prims, an abort on corrupt ``.usdc`` data) is a :class:`FormatError`
+(the file is corrupt), one line; the USD crash banner is not shown, and the crash report USD
+writes to ``TMPDIR`` lands in the child's private temporary folder, removed with it. Any
+other unexpected exception in the child is a bug, not bad input, and comes back as a
+:class:`UsdInternalError` naming its type. When the parent is interrupted (Ctrl-C, or
+SIGTERM/SIGHUP under the command-line tools) the child is killed and the folder removed.
 """
 from __future__ import annotations
 
@@ -24,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import FormatError, GsverseError, UsageError
+from ...limits import USD_CHILD_MEMORY_BASE, usd_child_seconds
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                       SplatPrimitive, TriangleMesh)
 from ...vocabulary import allowed_fields
@@ -37,7 +45,9 @@ __all__ = ["CHILD_CODE", "CHILD_MEMORY_BASE", "UsdInternalError", "read_isolated
            "inspect_isolated", "child_main"]
 
 #: Address-space cap of the child: this much plus 32 times the file size.
-CHILD_MEMORY_BASE = 8 * 2 ** 30
+CHILD_MEMORY_BASE = USD_CHILD_MEMORY_BASE
+#: Bytes of the child's standard error read back (its end) for a failure message.
+_STDERR_TAIL = 1 << 16
 #: The program the child interpreter runs (``python -c CHILD_CODE mode path out``).
 CHILD_CODE = "from gsverse_format.io.usd.isolation import child_main; child_main()"
 
@@ -75,21 +85,31 @@ def _run(mode: str, spath: str, timeout: float | None) -> dict[str, Any]:
         check_path(spath)
     except GsverseError as err:
         raise err.with_path(spath) from None
-    memory = CHILD_MEMORY_BASE + 32 * os.path.getsize(spath)
+    size = os.path.getsize(spath)
+    memory = CHILD_MEMORY_BASE + 32 * size
+    if timeout is None:
+        timeout = usd_child_seconds(size)
     env = dict(os.environ)
     package_root = str(pathlib.Path(str(resources.files("gsverse_format"))).parent)
     env["PYTHONPATH"] = package_root + (os.pathsep + env["PYTHONPATH"]
                                         if env.get("PYTHONPATH") else "")
     with tempfile.TemporaryDirectory(prefix="gsverse-usd-") as work:
         out = os.path.join(work, "result")
+        # The child's temporary folder is this private one: USD writes its crash report
+        # (st_python.<pid>) to TMPDIR, and it goes with the folder.
+        env["TMPDIR"] = os.path.join(work, "tmp")
+        os.mkdir(env["TMPDIR"])
         try:
-            proc = subprocess.run(
-                [sys.executable, "-c", CHILD_CODE, mode, os.path.abspath(spath), out],
-                env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                stderr=subprocess.PIPE, timeout=timeout,
-                preexec_fn=_child_limits(memory) if os.name == "posix" else None)
+            with open(os.path.join(work, "stderr"), "w+b") as err_file:
+                proc = subprocess.run(
+                    [sys.executable, "-c", CHILD_CODE, mode, os.path.abspath(spath), out],
+                    env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                    stderr=err_file, timeout=timeout,
+                    preexec_fn=_child_limits(memory) if os.name == "posix" else None)
+                err_file.seek(max(0, err_file.seek(0, os.SEEK_END) - _STDERR_TAIL))
+                stderr = err_file.read()
         except subprocess.TimeoutExpired:
-            raise FormatError(f"reading the USD file took longer than {timeout} s",
+            raise FormatError(f"reading the USD file took longer than {timeout:g} s",
                               spath) from None
         try:
             with open(out + ".json", encoding="utf-8") as handle:
@@ -104,7 +124,7 @@ def _run(mode: str, spath: str, timeout: float | None) -> dict[str, Any]:
                     name = f"signal {-proc.returncode}"
                 raise FormatError(f"corrupt USD file: the USD library crashed reading it "
                                   f"({name})", spath)
-            tail = proc.stderr.decode("utf-8", "replace").strip().splitlines()
+            tail = stderr.decode("utf-8", "replace").strip().splitlines()
             raise FormatError(f"corrupt USD file: the USD library failed reading it (exit "
                               f"code {proc.returncode}"
                               f"{': ' + tail[-1][:200] if tail else ''})", spath)

@@ -30,7 +30,8 @@ __all__ = ["USD_SUFFIXES", "MISSING_USD_CORE", "SCHEMA_DIR", "ANCHOR_API", "COLO
 #: File suffixes of USD files (``.usd`` is written as binary ``usdc``).
 USD_SUFFIXES = (".usda", ".usdc", ".usd", ".usdz")
 
-#: The one-line message when ``pxr`` cannot be imported.
+#: The one-line message when ``pxr`` cannot be imported, for a package installed from an
+#: index (:func:`gsverse_format.install.missing_usd_core` gives the line that fits this copy).
 MISSING_USD_CORE = "USD support needs usd-core: pip install 'gsverse-format[usd]'"
 
 #: The codeless schema plugin (``plugInfo.json`` + ``generatedSchema.usda``).
@@ -144,7 +145,9 @@ def import_pxr() -> types.SimpleNamespace:
         try:
             from pxr import Gf, Kind, Plug, Sdf, Tf, Usd, UsdGeom, UsdUtils, UsdVol, Vt
         except ImportError:
-            raise UsageError(MISSING_USD_CORE) from None
+            from ...install import missing_usd_core  # the install line that fits this copy
+
+            raise UsageError(missing_usd_core()) from None
         if not hasattr(UsdVol, SPLAT_TYPE):
             raise UsageError("USD support needs usd-core 26.03 or later (for UsdVol."
                              f"{SPLAT_TYPE}): pip install -U 'gsverse-format[usd]'")
@@ -194,10 +197,17 @@ def pxr_errors() -> tuple[type[BaseException], ...]:
     return (import_pxr().Tf.ErrorException, UnicodeDecodeError)
 
 
+#: Characters of a USD error message looked at: the USD library can describe a corrupt file of
+#: a few kilobytes in a message of over 100 MB (one entry per bad spec), and searching or
+#: splitting all of it would take longer than reading the file.
+MAX_MESSAGE_CHARS = 4000
+
+
 def pxr_message(err: BaseException) -> str:
-    """The first message of a ``Tf.ErrorException`` (or any exception), on one line."""
+    """The first message of a ``Tf.ErrorException`` (or any exception), on one line, from its
+    first :data:`MAX_MESSAGE_CHARS` characters."""
     try:
-        text = str(err)
+        text = str(err)[:MAX_MESSAGE_CHARS]
     except UnicodeDecodeError:  # USD quotes the file's bytes, which need not be UTF-8
         return f"{type(err).__name__} (its message is not valid UTF-8)"
     found = re.search(r" : '(.*?)'(?:\n|$)", text, re.S)

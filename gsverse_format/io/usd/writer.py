@@ -8,14 +8,13 @@ remap of a sequence of anchor-mesh poses is baked into time samples (:class:`Bak
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 import types
 from typing import Any, Iterable
 
 import numpy as np
 
 from ...version import __version__
+from ...atomic import check_target, file_mode, output_error, temporary_folder
 from ...errors import GsverseError, UsageError
 from ...model import Collider, LocalAnchors, SplatAsset, SplatPrimitive, TriangleMesh, check_primitive
 from ...quaternion import unit_quaternions
@@ -244,49 +243,36 @@ def _define_collider(px: types.SimpleNamespace, stage, names: _Names, anchor_pat
 
 
 def _check_protect(path: str, protect: Iterable) -> None:
-    target = os.path.realpath(path)
-    for other in protect:
-        if other is not None and os.path.exists(other) and os.path.exists(target) \
-                and os.path.samefile(other, target):
-            raise UsageError("output would overwrite an input file", path)
-
-
-def _current_umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+    check_target(path, tuple(protect))
 
 
 def _save(px: types.SimpleNamespace, layer, path: str, ext: str) -> None:
-    """Export ``layer`` atomically: a temporary file in the target's folder, then a rename."""
-    folder = os.path.dirname(os.path.abspath(path)) or "."
-    if not os.path.isdir(folder):
-        raise UsageError(f"output folder {folder!r} does not exist", path)
-    mode = 0o666 & ~_current_umask()
-    work = tempfile.mkdtemp(prefix=".tmp-", dir=folder)
+    """Export ``layer`` atomically: a temporary folder beside the target (named and cleaned
+    up as :mod:`gsverse_format.atomic` names them), then a rename."""
+    mode = file_mode()
     try:
-        if ext == ".usdz":
-            stem = os.path.splitext(os.path.basename(path))[0]
-            inner = os.path.join(work, px.Tf.MakeValidIdentifier(stem or "asset") + ".usdc")
-            result = os.path.join(work, "package.usdz")
-            if not layer.Export(inner):
-                raise GsverseError("cannot write the USD layer", path)
-            if not px.UsdUtils.CreateNewUsdzPackage(px.Sdf.AssetPath(inner), result):
-                raise GsverseError("cannot create the USDZ package", path)
-        else:
-            result = os.path.join(work, "asset" + ext)
-            if not layer.Export(result):
-                raise GsverseError("cannot write the USD layer", path)
-        os.chmod(result, mode)
-        os.replace(result, path)
+        with temporary_folder(path) as work:
+            if ext == ".usdz":
+                stem = os.path.splitext(os.path.basename(path))[0]
+                inner = os.path.join(work, px.Tf.MakeValidIdentifier(stem or "asset") + ".usdc")
+                result = os.path.join(work, "package.usdz")
+                if not layer.Export(inner):
+                    raise GsverseError("cannot write the USD layer", path)
+                if not px.UsdUtils.CreateNewUsdzPackage(px.Sdf.AssetPath(inner), result):
+                    raise GsverseError("cannot create the USDZ package", path)
+            else:
+                result = os.path.join(work, "asset" + ext)
+                if not layer.Export(result):
+                    raise GsverseError("cannot write the USD layer", path)
+            os.chmod(result, mode)
+            os.replace(result, path)
     except GsverseError:
         raise
     except OSError as err:
-        raise GsverseError(f"cannot write: {err.strerror or err}", path) from None
+        raise output_error(err, path) or GsverseError(f"cannot write: {err.strerror or err}",
+                                                      path) from None
     except pxr_errors() as err:
         raise GsverseError(f"cannot write USD: {pxr_message(err)}", path) from None
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
 
 
 def write_usd(asset: SplatAsset, path: str | os.PathLike, *,

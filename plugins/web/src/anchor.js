@@ -1,13 +1,16 @@
-// Reading GSVERSE_gaussian_splatting_mesh_anchor (spec/README.md, version 1.1): the anchored
+// Reading GSVERSE_gaussian_splatting_mesh_anchor (spec/README.md, version 1.2): the anchored
 // KHR_gaussian_splatting primitives of a GLB (or .gltf with data: URIs), their rest pose, their
 // anchor mesh and anchors, dequantized, with every refusal of spec/conformance.md
 // §What a plugin must implement (item 4). A refusal throws AnchorError with the
-// gsverse-validate code.
+// gsverse-validate code. The compact encodings (`faceCounts`, derived `local` anchors) are
+// expanded to per-splat anchors here (compact.js), so every consumer sees explicit anchors.
 
 import {
     BYTE, COMPONENT_TYPES, FLOAT, GltfError, SHORT, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
     dequantize, globalMatrices, isIndex, parseGltf,
 } from './glb.js';
+import { deriveLocalAnchors, expandFaceCounts } from './compact.js';
+import { EPS_DEGENERATE } from './rest.js';
 
 /** @typedef {import('./types.js').AnchoredPrimitive} AnchoredPrimitive */
 /** @typedef {import('./types.js').AnchoredGlb} AnchoredGlb */
@@ -42,6 +45,7 @@ export class AnchorError extends Error {
  */
 export const ANCHOR_ACCESSORS = {
     faceIndex: { type: 'SCALAR', formats: [[UNSIGNED_BYTE, false], [UNSIGNED_SHORT, false], [UNSIGNED_INT, false]] },
+    faceCounts: { type: 'SCALAR', formats: [[UNSIGNED_BYTE, false], [UNSIGNED_SHORT, false], [UNSIGNED_INT, false]] },
     barycentrics: { type: 'VEC2', formats: [[FLOAT, false], [UNSIGNED_BYTE, true], [UNSIGNED_SHORT, true]] },
     normalOffset: { type: 'SCALAR', formats: [[FLOAT, false]] },
     localRotation: { type: 'VEC4', formats: [[FLOAT, false], [BYTE, true], [SHORT, true]] },
@@ -52,11 +56,24 @@ export const ANCHOR_ACCESSORS = {
     rho: { type: 'SCALAR', formats: [[FLOAT, false]] },
 };
 
+/** Per-splat anchor properties each profile requires besides the face (explicit anchors). */
 /** @type {{[profile: string]: string[]}} */
 const REQUIRED = {
-    local: ['faceIndex', 'barycentrics', 'normalOffset', 'localRotation', 'localScale'],
-    games: ['faceIndex', 'barycentrics', 'rho'],
+    local: ['barycentrics', 'normalOffset', 'localRotation', 'localScale'],
+    games: ['barycentrics', 'rho'],
 };
+/** `local` properties that are all absent together when the anchors are derived. */
+const DERIVED = ['normalOffset', 'localRotation', 'localScale'];
+
+// gsverse-validate codes of the compact encodings (spec/validation.md); both or neither of
+// faceIndex and faceCounts, and derived anchors with some of normalOffset, localRotation,
+// localScale, are schema violations (ANCHOR_SCHEMA_VIOLATION)
+/** faceCounts count != the anchor primitive's triangle count */
+const CODE_FACE_COUNTS_COUNT = 'ANCHOR_FACE_COUNTS_COUNT';
+/** sum of faceCounts != POSITION count */
+const CODE_FACE_COUNTS_SUM = 'ANCHOR_FACE_COUNTS_SUM';
+/** a derived splat on a face degenerate at rest */
+const CODE_DERIVED_DEGENERATE = 'ANCHOR_DERIVED_ON_DEGENERATE';
 
 /** @param {RawAccessor} raw */
 function formatName(raw) {
@@ -143,7 +160,9 @@ const SH_C0 = 0.28209479177387814;
  * @param {GltfDocument} doc
  * @param {any} prim
  * @param {string} where
- * @returns {{rest: RestPose, count: number, shDegree: number}}
+ * @returns {{rest: RestPose, pose64: {means: Float64Array, rotations: Float64Array, scales: Float64Array},
+ *   count: number, shDegree: number}}  pose64: POSITION, ROTATION (not normalized) and SCALE
+ *   dequantized in binary64, for deriving anchors
  */
 function readRestPose(doc, prim, where) {
     const attrs = (prim.attributes && typeof prim.attributes === 'object') ? prim.attributes : {};
@@ -197,14 +216,15 @@ function readRestPose(doc, prim, where) {
     } else {
         throw new AnchorError('KHR_ATTRIBUTE_MISSING', `${where}: required ${KHR} attribute missing: ${KHR}:SH_DEGREE_0_COEF_0`);
     }
+    const pose64 = { means: dequantize(position), rotations: dequantize(rotation), scales: dequantize(scale) };
     const rest = {
-        means: Float32Array.from(dequantize(position)),
-        rotations: normalizeQuaternions(dequantize(rotation)),
-        scales: Float32Array.from(dequantize(scale)),
+        means: Float32Array.from(pose64.means),
+        rotations: normalizeQuaternions(pose64.rotations),
+        scales: Float32Array.from(pose64.scales),
         opacity: Float32Array.from(dequantize(opacity)),
         sh,
     };
-    return { rest, count, shDegree: Math.max(degree, 0) };
+    return { rest, pose64, count, shDegree: Math.max(degree, 0) };
 }
 
 /**
@@ -253,6 +273,36 @@ function readAnchorMesh(doc, m, p) {
 }
 
 /**
+ * The `faceCounts` accessor (one count per triangle of the anchor primitive), expanded to a
+ * face index per splat; its own count and the sum of the counts are checked.
+ * @param {GltfDocument} doc
+ * @param {unknown} index  the accessor index
+ * @param {string} what
+ * @param {number} faces  T, triangles of the anchor primitive
+ * @param {number} splats  N, the POSITION count
+ * @param {{[key: string]: string}} componentTypes  receives faceCounts' component type
+ * @returns {Uint32Array}
+ */
+function readFaceCounts(doc, index, what, faces, splats, componentTypes) {
+    const spec = ANCHOR_ACCESSORS.faceCounts;
+    const raw = doc.raw(index, what, [spec.type], 'ANCHOR_ACCESSOR_FORMAT');
+    if (!spec.formats.some(([ct, nz]) => ct === raw.componentType && nz === raw.normalized)) {
+        throw new AnchorError('ANCHOR_ACCESSOR_FORMAT', `${what} (accessor ${raw.index}) has component type ${formatName(raw)}, which the spec does not allow for faceCounts`);
+    }
+    if (raw.count !== faces) {
+        throw new AnchorError(CODE_FACE_COUNTS_COUNT, `${what} has ${raw.count} elements but the anchor primitive has ${faces} triangles (one count per triangle)`);
+    }
+    componentTypes.faceCounts = formatName(raw);
+    const { faceIndex, sum, exceeded } = expandFaceCounts(raw.values, splats);
+    if (!faceIndex) {
+        throw new AnchorError(CODE_FACE_COUNTS_SUM, exceeded
+            ? `${what} add up to more than the ${splats} splats of the primitive (POSITION count)`
+            : `${what} add up to ${sum} but the primitive has ${splats} splats (POSITION count)`);
+    }
+    return faceIndex;
+}
+
+/**
  * One anchored primitive: rest pose, anchor mesh, anchors, every refusal checked.
  * @param {GltfDocument} doc
  * @param {number} m
@@ -265,7 +315,7 @@ function readAnchored(doc, m, p, matrices) {
     const where = `meshes[${m}].primitives[${p}]`;
     const prim = json.meshes[m].primitives[p];
     const khr = prim.extensions[KHR];
-    const { rest, count, shDegree: B } = readRestPose(doc, prim, where);
+    const { rest, pose64, count, shDegree: B } = readRestPose(doc, prim, where);
     const ext = khr.extensions[EXTENSION];
     const w = `${where} ${EXTENSION}`;
     const schema = 'ANCHOR_SCHEMA_VIOLATION';
@@ -290,8 +340,24 @@ function readAnchored(doc, m, p, matrices) {
     anchorMesh.node = users.length ? users[0] : null;
     const profile = ext.profile;
     if (profile !== 'local' && profile !== 'games') throw new AnchorError(schema, `${w}.profile must be 'local' or 'games', got ${JSON.stringify(profile)}`);
-    const missing = REQUIRED[profile].filter((key) => ext[key] === undefined);
-    if (missing.length) throw new AnchorError(schema, `${w} (${profile} profile) lacks ${missing.join(', ')}`);
+    const hasIndex = ext.faceIndex !== undefined;
+    const hasCounts = ext.faceCounts !== undefined;
+    if (hasIndex === hasCounts) {
+        throw new AnchorError(schema, hasIndex
+            ? `${w} has both faceIndex and faceCounts; exactly one of them must be present`
+            : `${w} has neither faceIndex nor faceCounts; exactly one of them must be present`);
+    }
+    // derived local anchors: no barycentrics, and then none of normalOffset, localRotation, localScale
+    const derived = profile === 'local' && ext.barycentrics === undefined;
+    if (derived) {
+        const stray = DERIVED.filter((key) => ext[key] !== undefined);
+        if (stray.length) {
+            throw new AnchorError(schema, `${w} has no barycentrics (derived local anchors) but has ${stray.join(', ')}; derived anchors store none of normalOffset, localRotation, localScale`);
+        }
+    } else {
+        const missing = REQUIRED[profile].filter((key) => ext[key] === undefined);
+        if (missing.length) throw new AnchorError(schema, `${w} (${profile} profile) lacks ${missing.join(', ')}`);
+    }
     /** @type {{[key: string]: string}} */
     const componentTypes = {};
     /** @param {string} key @returns {RawAccessor} */
@@ -308,24 +374,30 @@ function readAnchored(doc, m, p, matrices) {
         componentTypes[key] = formatName(raw);
         return raw;
     };
-    const faceRaw = anchor('faceIndex');
-    const faceIndex = Uint32Array.from(faceRaw.values);
     const F = anchorMesh.faceCount;
-    for (let i = 0; i < count; ++i) {
-        if (faceIndex[i] >= F) {
-            throw new AnchorError('ANCHOR_FACE_OUT_OF_RANGE', `${w}.faceIndex value ${faceIndex[i]} (splat ${i}) out of range for an anchor mesh with ${F} triangles`);
+    /** @type {Uint32Array} */
+    let faceIndex;
+    if (hasIndex) {
+        faceIndex = Uint32Array.from(anchor('faceIndex').values);
+        for (let i = 0; i < count; ++i) {
+            if (faceIndex[i] >= F) {
+                throw new AnchorError('ANCHOR_FACE_OUT_OF_RANGE', `${w}.faceIndex value ${faceIndex[i]} (splat ${i}) out of range for an anchor mesh with ${F} triangles`);
+            }
         }
+    } else {
+        faceIndex = readFaceCounts(doc, ext.faceCounts, `${w}.faceCounts`, F, count, componentTypes);
     }
-    const barycentrics = Float32Array.from(dequantize(anchor('barycentrics')));
     /** @type {AnchoredPrimitive} */
     const out = {
         splatMesh: m, splatPrimitive: p, node: null, nodeMatrix: null,
         count, shDegree: B, shCoefficients: (B + 1) ** 2, rest, anchorMesh,
-        profile, deformation: null, faceIndex, barycentrics,
+        profile, deformation: null, faceEncoding: hasIndex ? 'faceIndex' : 'faceCounts', derived,
+        faceIndex, barycentrics: new Float32Array(0),
         normalOffset: null, localRotation: null, localScale: null, rho: null, componentTypes,
     };
     if (profile === 'games') {
         if (ext.deformation !== undefined) throw new AnchorError(schema, `${w}: 'deformation' must not be present with the games profile`);
+        out.barycentrics = Float32Array.from(dequantize(anchor('barycentrics')));
         out.rho = Float32Array.from(dequantize(anchor('rho')));
     } else {
         const deformation = ext.deformation === undefined ? 'affine' : ext.deformation;
@@ -333,6 +405,30 @@ function readAnchored(doc, m, p, matrices) {
             throw new AnchorError(schema, `${w}.deformation must be 'affine' or 'rigid', got ${JSON.stringify(deformation)}`);
         }
         out.deformation = deformation;
+    }
+    if (derived) {
+        // derived anchors are used as stored ones: the refusals of localRotation and
+        // localScale apply to the rest ROTATION (before normalizing) and SCALE they come from
+        const q = pose64.rotations;
+        for (let i = 0; i < count; ++i) {
+            if (q[4 * i] === 0 && q[4 * i + 1] === 0 && q[4 * i + 2] === 0 && q[4 * i + 3] === 0) {
+                throw new AnchorError('ROTATION_NOT_UNIT', `${where} ${KHR}:ROTATION of splat ${i} has length zero; derived local anchors need a rotation of non-zero length`);
+            }
+        }
+        const s = pose64.scales;
+        for (let i = 0; i < s.length; ++i) {
+            if (s[i] < 0) throw new AnchorError('SCALE_NEGATIVE', `${where} ${KHR}:SCALE of splat ${Math.floor(i / 3)} is negative; derived local anchors need scales >= 0`);
+        }
+        const { anchors, degenerateSplat } = deriveLocalAnchors(anchorMesh, faceIndex, pose64.means, pose64.rotations, pose64.scales);
+        if (!anchors) {
+            throw new AnchorError(CODE_DERIVED_DEGENERATE, `${w}: splat ${degenerateSplat} has derived anchors on face ${faceIndex[degenerateSplat]}, which is degenerate at rest (a <= ${EPS_DEGENERATE} l^2); derived anchors need a regular face`);
+        }
+        out.barycentrics = anchors.barycentrics;
+        out.normalOffset = anchors.normalOffset;
+        out.localRotation = anchors.localRotation;
+        out.localScale = anchors.localScale;
+    } else if (profile === 'local') {
+        out.barycentrics = Float32Array.from(dequantize(anchor('barycentrics')));
         out.normalOffset = Float32Array.from(dequantize(anchor('normalOffset')));
         const q = dequantize(anchor('localRotation'));
         for (let i = 0; i < count; ++i) {

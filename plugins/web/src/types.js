@@ -39,11 +39,16 @@
  * @property {AnchorMesh} anchorMesh
  * @property {'local'|'games'} profile
  * @property {'affine'|'rigid'|null} deformation  null for games
+ * @property {'faceIndex'|'faceCounts'} faceEncoding  how the file stores the faces: a face index per
+ *   splat, or per-face splat counts (splats grouped by face), expanded to faceIndex on import
+ * @property {boolean} derived  true when the file stores no `local` anchors but the face
+ *   (no barycentrics): barycentrics, normalOffset, localRotation and localScale were derived on
+ *   import in binary64 from the rest pose and the rest anchor triangles (Float64Array then)
  * @property {Uint32Array} faceIndex     (N)
- * @property {Float32Array} barycentrics (2N) b1, b2 (local) or α1, α2 (games), dequantized; b0 = 1 − b1 − b2
- * @property {Float32Array|null} normalOffset  (N) local only
- * @property {Float32Array|null} localRotation (4N) unit x, y, z, w, local only
- * @property {Float32Array|null} localScale    (3N) linear, ≥ 0, local only
+ * @property {Float32Array|Float64Array} barycentrics (2N) b1, b2 (local) or α1, α2 (games), dequantized; b0 = 1 − b1 − b2
+ * @property {Float32Array|Float64Array|null} normalOffset  (N) local only
+ * @property {Float32Array|Float64Array|null} localRotation (4N) unit x, y, z, w, local only
+ * @property {Float32Array|Float64Array|null} localScale    (3N) linear, ≥ 0 when stored, local only
  * @property {Float32Array|null} rho           (N) games only
  * @property {{[key: string]: string}} componentTypes  stored component type of each anchor accessor, e.g. {barycentrics: 'UNSIGNED_SHORT normalized'}
  */

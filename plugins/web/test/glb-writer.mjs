@@ -160,6 +160,11 @@ export class GltfBuilder {
  * @property {Typed|number[]} [rho]
  * @property {{bary?: boolean, rotation?: boolean, scale?: boolean}} [normalized]
  * @property {number[]} [means]  rest POSITION (default: zeros)
+ * @property {number[]} [rotations]  rest ROTATION x, y, z, w (default: identity)
+ * @property {number[]} [scales]     rest SCALE (default: 0.01)
+ * @property {Typed|number[]} [faceCounts]  write these per-face counts (UNSIGNED_INT unless typed)
+ *   instead of faceIndex; `face` still gives the splat count
+ * @property {boolean} [derived]  write no barycentrics, normalOffset, localRotation, localScale
  * @property {number} [shDegree]
  * @property {boolean} [interleave]  interleave the anchor accessors with byteStride
  * @property {number[]} [nodeMatrix]  splat node matrix (column-major)
@@ -182,7 +187,8 @@ export function anchoredBuilder(s) {
     const means = Float32Array.from(s.means || new Array(3 * N).fill(0));
     const rot = new Float32Array(4 * N);
     for (let i = 0; i < N; ++i) rot[4 * i + 3] = 1;
-    const scl = new Float32Array(3 * N).fill(0.01);
+    if (s.rotations) rot.set(s.rotations);
+    const scl = s.scales ? Float32Array.from(s.scales) : new Float32Array(3 * N).fill(0.01);
     /** @type {any} */
     const attributes = {
         POSITION: b.accessor(means, 'VEC3'),
@@ -204,15 +210,18 @@ export function anchoredBuilder(s) {
     if (s.indices) anchorPrim.indices = b.accessor(Uint32Array.from(s.indices), 'SCALAR');
     const nz = s.normalized || {};
     /** @type {{key: string, data: Typed, type: string, normalized?: boolean}[]} */
-    const items = [
-        { key: 'faceIndex', data: N <= 255 ? Uint8Array.from(s.face) : Uint32Array.from(s.face), type: 'SCALAR' },
-        { key: 'barycentrics', data: typed(s.bary), type: 'VEC2', normalized: nz.bary },
-    ];
-    if (s.profile === 'local') {
+    const items = s.faceCounts
+        ? [{ key: 'faceCounts', data: ArrayBuffer.isView(s.faceCounts) ? s.faceCounts : Uint32Array.from(s.faceCounts), type: 'SCALAR' }]
+        : [{ key: 'faceIndex', data: N <= 255 ? Uint8Array.from(s.face) : Uint32Array.from(s.face), type: 'SCALAR' }];
+    if (s.derived) {
+        // derived local anchors: the face only
+    } else if (s.profile === 'local') {
+        items.push({ key: 'barycentrics', data: typed(s.bary), type: 'VEC2', normalized: nz.bary });
         items.push({ key: 'normalOffset', data: typed(s.offset || new Array(N).fill(0)), type: 'SCALAR' });
         items.push({ key: 'localRotation', data: typed(s.rotation || Array.from(rot)), type: 'VEC4', normalized: nz.rotation });
         items.push({ key: 'localScale', data: typed(s.scale || Array.from(scl)), type: 'VEC3', normalized: nz.scale });
     } else {
+        items.push({ key: 'barycentrics', data: typed(s.bary), type: 'VEC2', normalized: nz.bary });
         items.push({ key: 'rho', data: typed(s.rho || new Array(N).fill(1)), type: 'SCALAR' });
     }
     /** @type {any} */

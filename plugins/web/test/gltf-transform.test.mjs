@@ -274,3 +274,32 @@ test('KHR properties this class does not model are kept; unregistered nested ext
     assert.deepEqual(Object.keys(khr.extensions), [EXT]);
     assert.deepEqual(out.json.extensionsUsed.sort(), [EXT, KHR]);
 });
+
+test('compact anchors (faceCounts, derived local anchors) round trip; broken counts are refused', async () => {
+    const counts = [2, 2, 2, 2];
+    const compact = { ...localSpec(), faceCounts: Uint8Array.from(counts), derived: true };
+    const original = anchoredGlb(compact);
+    const doc = await io().readBinary(original);
+    await doc.transform(prune(), dedup());
+    const written = await io().writeBinary(doc);
+    assertSameAnchoring(original, written);
+    const b = readAnchoredGlb(written, { name: 'written.glb' });
+    assert.equal(b.anchored[0].faceEncoding, 'faceCounts');
+    assert.equal(b.anchored[0].derived, true);
+    const ext = b.json.meshes[0].primitives[0].extensions[KHR].extensions[EXT];
+    assert.deepEqual(Object.keys(ext).sort(), ['deformation', 'faceCounts', 'mesh', 'primitive', 'profile']);
+    const games = anchoredGlb({ ...gamesSpec(), faceCounts: Uint16Array.from(counts) });
+    assertSameAnchoring(games, await io().writeBinary(await io().readBinary(games)));
+
+    /** @param {(anchor: MeshAnchor, doc: Document) => void} edit */
+    const edited = async (edit) => {
+        const d = await io().readBinary(original);
+        edit(/** @type {MeshAnchor} */ (d.getRoot().listMeshes()[0].listPrimitives()[0].getExtension(EXT)), d);
+        return d;
+    };
+    const counted = (/** @type {MeshAnchor} */ a) => /** @type {import('@gltf-transform/core').Accessor} */ (a.getAccessor('faceCounts'));
+    await refuses(await edited((a) => counted(a).setArray(Uint8Array.from([2, 2, 2, 1]))), /faceCounts add up to 7, not the 8 splats/);
+    await refuses(await edited((a) => counted(a).setArray(Uint8Array.from([2, 2, 2, 2, 0]))), /faceCounts accessor has 5 elements for 4 triangles/);
+    await refuses(await edited((a, d) => a.setAccessor('faceIndex', d.createAccessor().setType('SCALAR').setArray(new Uint8Array(8)))), /both faceIndex and faceCounts/);
+    await refuses(await edited((a, d) => a.setAccessor('normalOffset', d.createAccessor().setType('SCALAR').setArray(new Float32Array(8)))), /normalOffset but no barycentrics/);
+});

@@ -5,9 +5,12 @@
 //
 // Transforms that rewrite vertex data know nothing of the anchoring. What they may break is
 // checked when writing: the anchor mesh's vertex positions and triangles, and the splat
-// primitive's positions, rotations and scales, must be exactly what was read; every anchor
-// accessor must have one element per splat and every faceIndex must name a triangle. Otherwise
-// write() throws an MeshAnchorError with a one-line message and nothing is written.
+// primitive's positions, rotations and scales, must be exactly what was read; every per-splat
+// anchor accessor must have one element per splat, every faceIndex must name a triangle, and
+// faceCounts (extension 1.2) must hold one count per triangle adding up to the splat count.
+// Derived `local` anchors (1.2: no barycentrics) are computed from the rest pose and the anchor
+// mesh, which the first check keeps as read. Otherwise write() throws an MeshAnchorError with a
+// one-line message and nothing is written.
 
 import { Extension, ExtensionProperty, MathUtils, PropertyType } from '@gltf-transform/core';
 import { GSVERSE_MESH_ANCHOR, KHR_GAUSSIAN_SPLATTING } from './khr-gaussian-splatting.js';
@@ -28,16 +31,19 @@ const USAGE = { usage: 'OTHER' };
 /** Compression extensions whose output GS-Verse readers refuse (and Draco re-orders points and vertices). */
 const COMPRESSION = ['KHR_draco_mesh_compression', 'EXT_meshopt_compression', 'KHR_meshopt_compression'];
 
-/** @typedef {'faceIndex' | 'barycentrics' | 'normalOffset' | 'localRotation' | 'localScale' | 'rho'} AnchorAccessorKey */
+/** @typedef {'faceIndex' | 'faceCounts' | 'barycentrics' | 'normalOffset' | 'localRotation' | 'localScale' | 'rho'} AnchorAccessorKey */
 
-/** The anchor accessors of each profile, with their accessor type. */
+/**
+ * The per-splat anchor accessors of each profile besides the face (faceIndex, or faceCounts
+ * per triangle), with their accessor type. `local` anchors without barycentrics are derived
+ * (extension 1.2): then none of these is present.
+ */
 export const PROFILE_ACCESSORS = /** @type {const} */ ({
-    local: [['faceIndex', 'SCALAR'], ['barycentrics', 'VEC2'], ['normalOffset', 'SCALAR'],
-        ['localRotation', 'VEC4'], ['localScale', 'VEC3']],
-    games: [['faceIndex', 'SCALAR'], ['barycentrics', 'VEC2'], ['rho', 'SCALAR']],
+    local: [['barycentrics', 'VEC2'], ['normalOffset', 'SCALAR'], ['localRotation', 'VEC4'], ['localScale', 'VEC3']],
+    games: [['barycentrics', 'VEC2'], ['rho', 'SCALAR']],
 });
 /** @type {AnchorAccessorKey[]} */
-const ACCESSOR_KEYS = ['faceIndex', 'barycentrics', 'normalOffset', 'localRotation', 'localScale', 'rho'];
+const ACCESSOR_KEYS = ['faceIndex', 'faceCounts', 'barycentrics', 'normalOffset', 'localRotation', 'localScale', 'rho'];
 /** The rest-pose attributes of the splat primitive whose values the anchoring depends on. */
 const SPLAT_ATTRIBUTES = ['POSITION', 'KHR_gaussian_splatting:ROTATION', 'KHR_gaussian_splatting:SCALE'];
 
@@ -69,6 +75,7 @@ export class MeshAnchorError extends Error {
  * @property {string} profile
  * @property {string | null} deformation
  * @property {Accessor} faceIndex
+ * @property {Accessor} faceCounts
  * @property {Accessor} barycentrics
  * @property {Accessor} normalOffset
  * @property {Accessor} localRotation
@@ -105,7 +112,7 @@ export class MeshAnchor extends ExtensionProperty {
     getDefaults() {
         return Object.assign(super.getDefaults(), {
             mesh: null, primitive: 0, profile: 'local', deformation: null,
-            faceIndex: null, barycentrics: null, normalOffset: null, localRotation: null, localScale: null, rho: null,
+            faceIndex: null, faceCounts: null, barycentrics: null, normalOffset: null, localRotation: null, localScale: null, rho: null,
         });
     }
 
@@ -387,17 +394,30 @@ function checkAnchor(anchor, prim, context, refuse) {
     /** @type {Record<string, unknown>} */
     const def = { mesh: meshIndex, primitive: anchor.getPrimitive(), profile };
     if (deformation !== null) def.deformation = deformation;
-    for (const [key, type] of PROFILE_ACCESSORS[profile]) {
+    /** @param {AnchorAccessorKey} key @param {string} type @param {number} count @param {string} per */
+    const put = (key, type, count, per) => {
         const accessor = anchor.getAccessor(key);
         if (!accessor) throw refuse(`its ${key} accessor was removed by a transform`);
         if (accessor.getType() !== type) throw refuse(`its ${key} accessor is ${accessor.getType()}, not ${type}`);
-        if (accessor.getCount() !== n) {
-            throw refuse(`its ${key} accessor has ${accessor.getCount()} elements for ${n} splats `
-                + '(a transform added, removed or merged splats; the anchors would belong to other splats)');
+        if (accessor.getCount() !== count) {
+            throw refuse(`its ${key} accessor has ${accessor.getCount()} elements for ${count} ${per} `
+                + '(a transform added, removed or merged splats or triangles; the anchors would belong to others)');
         }
         const index = context.accessorIndexMap.get(accessor);
         if (index === undefined) throw refuse(`its ${key} accessor was not written (no buffer)`);
         def[key] = index;
+        return accessor;
+    };
+    const hasCounts = anchor.getAccessor('faceCounts') !== null;
+    if (hasCounts && anchor.getAccessor('faceIndex')) throw refuse('it has both faceIndex and faceCounts (exactly one is allowed)');
+    const face = hasCounts ? put('faceCounts', 'SCALAR', faces, 'triangles') : put('faceIndex', 'SCALAR', n, 'splats');
+    const derived = profile === 'local' && anchor.getAccessor('barycentrics') === null;
+    for (const [key, type] of PROFILE_ACCESSORS[profile]) {
+        if (derived) {
+            if (anchor.getAccessor(key)) throw refuse(`it has ${key} but no barycentrics (derived local anchors store neither)`);
+        } else {
+            put(key, type, n, 'splats');
+        }
     }
     if (state) {
         if (!state.splatIndexed && prim.getIndices()) throw refuse('the splat primitive was indexed by a transform');
@@ -411,10 +431,16 @@ function checkAnchor(anchor, prim, context, refuse) {
             }
         }
     }
-    const faceIndex = /** @type {Accessor} */ (anchor.getAccessor('faceIndex'));
-    const faceArray = faceIndex.getArray() || [];
-    for (let i = 0; i < faceArray.length; ++i) {
-        if (!(faceArray[i] < faces)) throw refuse(`faceIndex[${i}] = ${faceArray[i]} but the anchor mesh has ${faces} triangles`);
+    const faceArray = face.getArray() || [];
+    if (hasCounts) {
+        // stops at the first overrun: the sum stays an exact integer in binary64
+        let sum = 0;
+        for (let f = 0; f < faceArray.length && sum <= n; ++f) sum += faceArray[f];
+        if (sum !== n) throw refuse(`its faceCounts add up to ${sum > n ? `more than ${n}` : sum}, not the ${n} splats`);
+    } else {
+        for (let i = 0; i < faceArray.length; ++i) {
+            if (!(faceArray[i] < faces)) throw refuse(`faceIndex[${i}] = ${faceArray[i]} but the anchor mesh has ${faces} triangles`);
+        }
     }
     if (Object.keys(anchor.getExtras()).length) def.extras = anchor.getExtras();
     return def;

@@ -1,0 +1,229 @@
+"""Hostile inputs against the readers' limits: ``python -m benchmarks.hostile [--quick]``.
+
+Generates, in a temporary folder (nothing is committed), small files built to take huge
+memory or time, and runs ``gsverse-convert`` and ``gsverse-validate`` on each in a separate
+process. Prints one row per run: the input, its size, the limit it meets
+(``gsverse_format/limits.py``, README §Limits), the outcome (exit status and the first words
+of the message), the wall time and the peak resident memory of the process (``VmHWM``
+polled every 20 ms; a USD child process is not included). The goal: every refusal within a
+few seconds and a small multiple of the input's size (plus the interpreter's ~150 MiB).
+
+Inputs: a glTF node graph where each node lists the next one 4 times (4⁶⁰ mesh instances);
+a GLB with 400,000 accessors (``--quick``: 120,000) and one with 100,000 (the limit:
+validated, every accessor checked); a ``.gltf`` with one 512 MiB base64
+``data:`` URI (``--quick``: 16 MiB, validated with ``--max-data-uri-bytes 8M``); 3,000 splat
+primitives sharing the accessors of one 3,000-splat primitive (``--quick``: 600 × 3,000);
+JSON with a ``NaN`` literal; a ``.usda`` declaring 1.1 million prims and one nesting brackets
+5,000 deep; an OBJ anchor mesh whose ``mtllib`` points outside its folder (converted: the
+material file is never opened).
+"""
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import os
+import sys
+import tempfile
+from typing import Callable
+
+import numpy as np
+
+from benchmarks.convert import run_process
+from gsverse_format import limits
+
+TRIANGLE = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
+
+
+def _glb(path: str, doc: dict, binary: bytes) -> str:
+    from gsverse_format.io.gltf import glb_bytes
+
+    with open(path, "wb") as handle:
+        handle.write(glb_bytes(json.dumps(doc).encode(), binary))
+    return path
+
+
+def _triangle_doc(nodes: list, accessors: list | None = None) -> dict:
+    return {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": nodes,
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "accessors": accessors or [{"bufferView": 0, "componentType": 5126, "count": 3,
+                                        "type": "VEC3"}],
+            "bufferViews": [{"buffer": 0, "byteLength": len(TRIANGLE)}],
+            "buffers": [{"byteLength": len(TRIANGLE)}]}
+
+
+def dag_bomb(folder: str, quick: bool) -> str:
+    nodes = [{"children": [i + 1] * 4} for i in range(60)] + [{"mesh": 0}]
+    return _glb(os.path.join(folder, "dag_bomb.glb"), _triangle_doc(nodes), TRIANGLE)
+
+
+def many_accessors(folder: str, quick: bool) -> str:
+    n = 120_000 if quick else 400_000
+    acc = {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}
+    return _glb(os.path.join(folder, "many_accessors.glb"),
+                _triangle_doc([{"mesh": 0}], [acc] * n), TRIANGLE)
+
+
+def accessors_at_limit(folder: str, quick: bool) -> str:
+    acc = {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}
+    return _glb(os.path.join(folder, "accessors_at_limit.glb"),
+                _triangle_doc([{"mesh": 0}], [acc] * limits.MAX_GLTF_ARRAY_ITEMS), TRIANGLE)
+
+
+def big_data_uri(folder: str, quick: bool) -> str:
+    size = 2 ** 24 if quick else 2 ** 29
+    path = os.path.join(folder, "data_uri.gltf")
+    with open(path, "w", encoding="ascii") as handle:
+        handle.write('{"asset": {"version": "2.0"}, "buffers": [{"byteLength": %d, "uri": '
+                     '"data:application/octet-stream;base64,' % size)
+        block = base64.b64encode(bytes(3 * 2 ** 20)).decode()
+        for _ in range(size // (3 * 2 ** 20)):
+            handle.write(block)
+        handle.write(base64.b64encode(bytes(size % (3 * 2 ** 20))).decode())
+        handle.write('"}]}')
+    return path
+
+
+def shared_primitives(folder: str, quick: bool) -> str:
+    from gsverse_format import api
+    from gsverse_format.examples import example_mesh, example_splats
+    from gsverse_format.io.gltf import parse_glb
+    from gsverse_format.model import SplatAsset, SplatPrimitive
+
+    one = os.path.join(folder, "one_primitive.glb")
+    cloud = example_splats(example_mesh(), 3000)
+    api.write(SplatAsset([SplatPrimitive(cloud, None, "a")]), one)
+    with open(one, "rb") as handle:
+        json_chunk, binary = parse_glb(handle.read())
+    doc = json.loads(json_chunk)
+    doc["meshes"][0]["primitives"] *= 600 if quick else 3000
+    return _glb(os.path.join(folder, "shared_primitives.glb"), doc, bytes(binary))
+
+
+def nan_json(folder: str, quick: bool) -> str:
+    path = os.path.join(folder, "nan.gltf")
+    with open(path, "w", encoding="utf-8") as handle:
+        handle.write('{"asset": {"version": "2.0"}, "nodes": [{"translation": [NaN, 0, 0]}]}')
+    return path
+
+
+def usda_prims(folder: str, quick: bool) -> str:
+    path = os.path.join(folder, "prims.usda")
+    with open(path, "w", encoding="ascii") as handle:
+        handle.write("#usda 1.0\n")
+        line = 'def "p" {}\n' * 1000
+        for _ in range(1100):
+            handle.write(line)
+    return path
+
+
+def usda_nesting(folder: str, quick: bool) -> str:
+    path = os.path.join(folder, "nesting.usda")
+    with open(path, "w", encoding="ascii") as handle:
+        handle.write("#usda 1.0\n" + 'def "a" {' * 5000 + "}" * 5000 + "\n")
+    return path
+
+
+def obj_outside_material(folder: str, quick: bool) -> str:
+    inner = os.path.join(folder, "obj")
+    os.makedirs(inner, exist_ok=True)
+    canary = os.path.join(folder, "canary.mtl")
+    with open(canary, "w", encoding="ascii") as handle:
+        handle.write("newmtl m\nKd 1 0 0\n")
+    path = os.path.join(inner, "mesh.obj")
+    with open(path, "w", encoding="ascii") as handle:
+        handle.write(f"mtllib ../canary.mtl\nmtllib {canary}\n")
+        with open(os.path.join(folder, "example", "mesh.obj"), encoding="ascii") as mesh:
+            handle.write(mesh.read())
+    return path
+
+
+#: (name, builder, the limit it meets, which tools run on it).
+CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
+    ("node graph, 4⁶⁰ instances", dag_bomb,
+     f"MAX_SCENE_INSTANCES = {limits.MAX_SCENE_INSTANCES:,}", ("mesh", "validate")),
+    ("GLB with many accessors", many_accessors,
+     f"MAX_GLTF_ARRAY_ITEMS = {limits.MAX_GLTF_ARRAY_ITEMS:,}", ("convert", "validate")),
+    ("GLB with 100,000 accessors, at the limit", accessors_at_limit,
+     f"MAX_GLTF_ARRAY_ITEMS = {limits.MAX_GLTF_ARRAY_ITEMS:,}", ("validate",)),
+    ("one huge data: URI", big_data_uri,
+     f"MAX_DATA_URI_BYTES = {limits.MAX_DATA_URI_BYTES:,}", ("convert", "validate")),
+    ("primitives sharing accessors", shared_primitives,
+     f"MAX_READ_AMPLIFICATION = {limits.MAX_READ_AMPLIFICATION}", ("convert", "validate")),
+    ("NaN in glTF JSON", nan_json, "JSON only", ("convert", "validate")),
+    ("USD text, 1.1M prims", usda_prims,
+     f"MAX_USD_TEXT_PRIMS = {limits.MAX_USD_TEXT_PRIMS:,}", ("convert", "validate")),
+    ("USD text, nesting 5,000", usda_nesting,
+     f"MAX_USD_TEXT_NESTING = {limits.MAX_USD_TEXT_NESTING}", ("convert", "validate")),
+    ("OBJ mtllib outside its folder", obj_outside_material, "no file outside is read",
+     ("mesh",)),
+]
+
+
+def _commands(tool: str, path: str, folder: str, quick: bool) -> list[str]:
+    exe = os.path.dirname(sys.executable)
+    out = os.path.join(folder, "out.glb")
+    if tool == "validate":
+        extra = ["--max-data-uri-bytes", "8M"] if quick and path.endswith("data_uri.gltf") else []
+        return [os.path.join(exe, "gsverse-validate"), *extra, path]
+    if tool == "mesh":  # the file as the anchor mesh of a conversion
+        splats = os.path.join(folder, "example", "splats.ply")
+        return [os.path.join(exe, "gsverse-convert"), splats, out, "--mesh", path, "--overwrite"]
+    return [os.path.join(exe, "gsverse-convert"), path, out, "--overwrite"]
+
+
+def _outcome(res: dict) -> str:
+    lines = [ln for ln in res["output"].splitlines() if ln.strip()]
+    if res["rc"] == 0:
+        return "exit 0"
+    finding = [ln.split(None, 1)[1] for ln in lines if ln.lstrip().startswith("error ")]
+    if finding:  # the validator: the first error finding (code: message)
+        words = finding[0]
+    else:        # the converter: "gsverse-convert: error: FILE: cause"
+        first = next((ln for ln in lines if "error" in ln), lines[-1] if lines else "")
+        words = first.split(": ", 3)[-1]
+    return f"exit {res['rc']}: {words[:80]}"
+
+
+def run(quick: bool, log: Callable[[str], None] = print) -> list[dict]:
+    from gsverse_format.examples import make_example
+
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="gsverse-hostile-") as folder:
+        make_example(os.path.join(folder, "example"))
+        for name, build, limit, tools in CASES:
+            path = build(folder, quick)
+            size = os.path.getsize(path)
+            for tool in tools:
+                cmd = _commands(tool, path, folder, quick)
+                log(f"{name}: {os.path.basename(cmd[0])} {os.path.basename(path)}")
+                res = run_process(cmd)
+                rows.append({"case": name, "tool": "convert --mesh" if tool == "mesh" else tool,
+                             "bytes": size, "limit": limit, "outcome": _outcome(res),
+                             "wall_s": res["wall_s"], "peak_rss_mb": res["peak_rss_mb"]})
+            os.remove(path)
+    return rows
+
+
+def markdown(rows: list[dict], quick: bool) -> str:
+    out = [f"# Hostile inputs ({'quick' if quick else 'full'} sizes)", "",
+           "| input | tool | file size | limit | outcome | wall s | peak RSS MiB |",
+           "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(f"| {r['case']} | {r['tool']} | {r['bytes']:,} | {r['limit']} | "
+                   f"{r['outcome']} | {r['wall_s']:.2f} | {r['peak_rss_mb']:.0f} |")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.hostile",
+                                description=__doc__.split("\n")[0])
+    p.add_argument("--quick", action="store_true", help="smaller inputs (about a minute)")
+    args = p.parse_args(argv)
+    rows = run(args.quick, lambda msg: print(msg, file=sys.stderr, flush=True))
+    print(markdown(rows, args.quick))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

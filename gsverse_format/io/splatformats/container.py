@@ -1,0 +1,174 @@
+"""The byte layer of the web splat formats: whole files, gzip streams, SOG bundles, WebP images.
+
+Nothing here knows what a splat is. Every problem is a one-line
+:class:`~gsverse_format.errors.FormatError` naming the file (a missing file is a
+:class:`~gsverse_format.errors.UsageError`).
+
+Limits (each guards against a file that claims more than it holds, or a decompression bomb):
+
+* :data:`MAX_INFLATED_BYTES` — the most bytes a gzip stream (``.spz``) or one SOG member may
+  inflate to: 4 GiB, above the largest real captures (≈ 60 million splats of SH degree 0 in
+  ``.spz``, whose splats take 64 bytes each at degree 3).
+* :data:`MAX_IMAGE_PIXELS` — the most pixels of one SOG WebP image: 2²⁸ (16384²), the WebP
+  format's own limit on each side.
+"""
+from __future__ import annotations
+
+import io
+import json
+import os
+import zipfile
+import zlib
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ...errors import FormatError, UsageError
+
+__all__ = ["MAX_INFLATED_BYTES", "MAX_IMAGE_PIXELS", "read_bytes", "gunzip", "Bundle",
+           "open_bundle", "decode_webp", "Fields"]
+
+MAX_INFLATED_BYTES = 4 << 30
+MAX_IMAGE_PIXELS = 1 << 28
+
+
+def read_bytes(path: str) -> bytes:
+    """The whole file (a missing file is a :class:`UsageError`, other failures a
+    :class:`FormatError`)."""
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    except FileNotFoundError:
+        raise UsageError("file not found", path) from None
+    except IsADirectoryError:
+        raise FormatError("is a folder, not a file", path) from None
+    except OSError as exc:
+        raise FormatError(f"cannot read the file ({exc.strerror or exc})", path) from None
+
+
+def gunzip(data: bytes, path: str, limit: int = MAX_INFLATED_BYTES) -> bytes:
+    """The content of a gzip stream, at most ``limit`` bytes."""
+    inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
+    try:
+        out = inflater.decompress(data, limit)
+        if inflater.unconsumed_tail:
+            raise FormatError(f"the gzip stream inflates to more than {limit} bytes", path)
+        out += inflater.flush()
+    except zlib.error as exc:
+        raise FormatError(f"broken gzip stream ({exc})", path) from None
+    if not inflater.eof:
+        raise FormatError("truncated gzip stream", path)
+    return out
+
+
+@dataclass
+class Bundle:
+    """The files of a SOG scene: a ``.sog`` zip archive, or the folder of a ``meta.json``.
+    ``sizes`` gives each member's stored size in bytes."""
+
+    path: str
+    zip: zipfile.ZipFile | None
+    folder: str | None
+    sizes: dict[str, int] = field(default_factory=dict)
+
+    def read(self, name: str) -> bytes:
+        """Member ``name`` (a relative path without ``..``), at most
+        :data:`MAX_INFLATED_BYTES` bytes."""
+        if not isinstance(name, str) or not name or name.startswith(("/", "\\")) \
+                or ".." in name.replace("\\", "/").split("/"):
+            raise FormatError(f"meta.json names a file {name!r} outside the bundle", self.path)
+        if self.zip is not None:
+            try:
+                info = self.zip.getinfo(name)
+            except KeyError:
+                raise FormatError(f"the archive has no member {name!r}", self.path) from None
+            if info.file_size > MAX_INFLATED_BYTES:
+                raise FormatError(f"member {name!r} inflates to {info.file_size} bytes, more "
+                                  f"than {MAX_INFLATED_BYTES}", self.path)
+            try:
+                return self.zip.read(info)
+            except (zipfile.BadZipFile, zlib.error, NotImplementedError, OSError, EOFError,
+                    ValueError) as exc:
+                raise FormatError(f"cannot read member {name!r} ({exc})", self.path) from None
+        assert self.folder is not None
+        member = os.path.join(self.folder, name)
+        if not os.path.isfile(member):
+            raise FormatError(f"meta.json names {name!r}, which is not beside it", self.path)
+        data = read_bytes(member)
+        self.sizes[name] = len(data)
+        return data
+
+    def close(self) -> None:
+        if self.zip is not None:
+            self.zip.close()
+
+
+def open_bundle(path: str) -> tuple[Bundle, dict[str, Any]]:
+    """The bundle at ``path`` (a zip archive, or a ``meta.json`` whose images lie beside it)
+    and its parsed ``meta.json``."""
+    data = read_bytes(path)
+    if data[:4] == b"PK\x03\x04":
+        try:
+            archive = zipfile.ZipFile(io.BytesIO(data))
+        except (zipfile.BadZipFile, UnicodeDecodeError, ValueError, EOFError) as exc:
+            raise FormatError(f"broken zip archive ({exc})", path) from None
+        bundle = Bundle(path, archive, None,
+                        {i.filename: i.compress_size for i in archive.infolist()})
+        meta_bytes = bundle.read("meta.json")
+    else:
+        folder = os.path.dirname(os.path.abspath(path))
+        bundle = Bundle(path, None, folder, {os.path.basename(path): len(data)})
+        meta_bytes = data
+    try:
+        meta = json.loads(meta_bytes.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        bundle.close()
+        raise FormatError(f"meta.json is not valid JSON ({exc})", path) from None
+    if not isinstance(meta, dict):
+        bundle.close()
+        raise FormatError("meta.json is not a JSON object", path)
+    return bundle, meta
+
+
+def decode_webp(data: bytes, name: str, path: str) -> np.ndarray:
+    """An image (WebP, or any format Pillow reads) as an (H, W, 4) uint8 RGBA array.
+
+    Pillow decodes WebP through libwebp, which its wheels carry: SOG images are lossless
+    WebP, so every byte comes back exactly as written."""
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(io.BytesIO(data)) as image:
+            if image.width * image.height > MAX_IMAGE_PIXELS:
+                raise FormatError(f"image {name!r} has {image.width}x{image.height} pixels, "
+                                  f"more than {MAX_IMAGE_PIXELS}", path)
+            rgba = np.asarray(image.convert("RGBA"), dtype=np.uint8)
+    except (UnidentifiedImageError, OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise FormatError(f"cannot decode image {name!r} ({exc})", path) from None
+    return rgba
+
+
+class Fields:
+    """Little-endian fixed-layout reading of a header: ``u8/u16/u32/f32(offset)``."""
+
+    def __init__(self, data: bytes, path: str, what: str):
+        self.data, self.path, self.what = data, path, what
+
+    def _get(self, fmt: str, offset: int) -> Any:
+        size = np.dtype(fmt).itemsize
+        if offset + size > len(self.data):
+            raise FormatError(f"truncated {self.what}", self.path)
+        return np.frombuffer(self.data, fmt, 1, offset)[0].item()
+
+    def u8(self, offset: int) -> int:
+        return int(self._get("u1", offset))
+
+    def u16(self, offset: int) -> int:
+        return int(self._get("<u2", offset))
+
+    def u32(self, offset: int) -> int:
+        return int(self._get("<u4", offset))
+
+    def f32(self, offset: int) -> float:
+        return float(self._get("<f4", offset))
