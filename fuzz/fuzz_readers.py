@@ -116,19 +116,6 @@ def make_targets(usd: str = "worker") -> dict[str, list[tuple[str, Any]]]:
                      ("read_ply_mesh", read_ply_mesh), ("read_mesh", read_mesh)]}
 
 
-def _child_limits(memory: int) -> Callable[[], None]:  # pragma: no cover - in the child
-    """Address-space cap and no core files for the USD worker (as for the isolation child)."""
-    def apply() -> None:
-        try:
-            import resource
-
-            resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
-            resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-        except (ImportError, ValueError, OSError):
-            pass
-    return apply
-
-
 def classify_report(report: Any) -> tuple[str, str]:
     """(outcome, detail) of a validation report: an ``INTERNAL_ERROR`` finding is an internal
     error, errors a refusal."""
@@ -153,7 +140,7 @@ class UsdWorker:
         self.fresh = False
 
     def _start(self) -> None:
-        from gsverse_format.io.usd.isolation import CHILD_MEMORY_BASE
+        from gsverse_format.io.usd.isolation import CHILD_MEMORY_BASE, child_limits
 
         env = dict(os.environ)
         env["PYTHONPATH"] = _ROOT + (os.pathsep + env["PYTHONPATH"]
@@ -161,7 +148,7 @@ class UsdWorker:
         self.proc = subprocess.Popen(
             [sys.executable, "-c", USD_WORKER_CODE, str(self.timeout)], cwd=_ROOT, env=env,
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-            preexec_fn=_child_limits(CHILD_MEMORY_BASE + 32 * MAX_INPUT)
+            preexec_fn=child_limits(CHILD_MEMORY_BASE + 32 * MAX_INPUT)
             if os.name == "posix" else None)
         self.buffer = b""
         self.starts += 1

@@ -120,7 +120,10 @@ def test_bad_input_is_one_line_and_exit_1(tmp_path, capsys, content, suffix):
     assert lines[0].startswith("gsverse-info: error: ") and str(path) in lines[0]
     assert main([str(path), "--json"]) == 1
     out, err = capsys.readouterr()
-    assert json.loads(out) == {"path": str(path), "error": lines[0][len("gsverse-info: error: "):]}
+    error = json.loads(out)
+    assert error["exit"] == 1 and error["input"] == str(path)
+    assert error["error"]["kind"] == "input" and error["error"]["path"] == str(path)
+    assert error["error"]["message"] == lines[0][len("gsverse-info: error: "):]
 
 
 def test_missing_and_unknown_files_are_usage_errors(tmp_path, capsys):

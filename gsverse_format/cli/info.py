@@ -1,8 +1,9 @@
 """``gsverse-info FILE``: what a splat file holds — format, splat count, SH degree, bounds,
 anchoring (profile, deformation, encoding), meshes and the size of each part.
 
-Text by default, ``--json`` for machines (an error is then a JSON object on standard output
-too). Bad input is one line on standard error and exit status 1 (:mod:`.boundary`).
+Text by default (names read from the file escaped, as in every text report), ``--json`` for
+machines (an error is then the JSON object of :func:`.boundary.json_error` on standard output
+too, as for the other tools). Bad input is one line on standard error and exit status 1 (:mod:`.boundary`).
 """
 from __future__ import annotations
 
@@ -10,9 +11,9 @@ import argparse
 import json
 import sys
 
-from ..errors import GsverseError
 from ..io.info import describe, format_text
 from ..progress import Progress
+from ..textsafe import safe_text
 from ..version import __version__
 from .boundary import run_command
 
@@ -36,16 +37,12 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(enabled=False)
 
     def work() -> int:
-        try:
-            info = describe(args.file)
-        except GsverseError as exc:
-            if args.json:
-                print(json.dumps({"path": args.file, "error": str(exc)}))
-            raise
-        print(json.dumps(info.as_dict(), indent=2) if args.json else format_text(info))
+        info = describe(args.file)
+        # Names inside the file (primitives, meshes, generator) are escaped in text output.
+        print(json.dumps(info.as_dict(), indent=2) if args.json else safe_text(format_text(info)))
         return 0
 
-    return run_command(PROG, args.file, progress, work)
+    return run_command(PROG, args.file, progress, work, json_errors=args.json)
 
 
 if __name__ == "__main__":  # pragma: no cover

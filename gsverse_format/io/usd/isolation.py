@@ -41,7 +41,7 @@ from .reader import read_in_process
 from .schema import import_pxr
 from .stage import check_path
 
-__all__ = ["CHILD_CODE", "CHILD_MEMORY_BASE", "UsdInternalError", "read_isolated",
+__all__ = ["CHILD_CODE", "CHILD_MEMORY_BASE", "UsdInternalError", "child_limits", "read_isolated",
            "inspect_isolated", "child_main"]
 
 #: Address-space cap of the child: this much plus 32 times the file size.
@@ -65,7 +65,9 @@ class UsdInternalError(RuntimeError):
         super().__init__(f"{type_name} in the USD child process: {message}{at}")
 
 
-def _child_limits(memory: int) -> Callable[[], None]:  # pragma: no cover - runs in the child
+def child_limits(memory: int) -> Callable[[], None]:  # pragma: no cover - runs in the child
+    """A ``preexec_fn`` giving a child process an address-space cap of ``memory`` bytes and
+    no core files (the USD child here, and the fuzz harness's USD worker)."""
     def apply() -> None:
         try:
             import resource
@@ -105,7 +107,7 @@ def _run(mode: str, spath: str, timeout: float | None) -> dict[str, Any]:
                     [sys.executable, "-c", CHILD_CODE, mode, os.path.abspath(spath), out],
                     env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                     stderr=err_file, timeout=timeout,
-                    preexec_fn=_child_limits(memory) if os.name == "posix" else None)
+                    preexec_fn=child_limits(memory) if os.name == "posix" else None)
                 err_file.seek(max(0, err_file.seek(0, os.SEEK_END) - _STDERR_TAIL))
                 stderr = err_file.read()
         except subprocess.TimeoutExpired:
