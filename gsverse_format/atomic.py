@@ -212,6 +212,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb",
                 yield handle
                 handle.flush()
                 os.fsync(handle.fileno())
+            _deliver_pending_signals()
             os.replace(tmp, path)
             _LIVE.discard(tmp)
         except BaseException:
@@ -222,6 +223,16 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb",
         if wrapped is None:
             raise
         raise wrapped from None
+
+
+def _deliver_pending_signals() -> None:
+    """Run the Python handlers of signals that arrived during the last system calls (the
+    write and ``fsync`` of a large file take most of a conversion's final second) *before*
+    the rename: CPython runs handlers only at certain points of Python code, such as entering
+    a Python function (this one), and none lies between ``fsync`` and ``os.replace``. A
+    SIGINT/SIGTERM/SIGHUP received while the file was written then aborts the write, and the
+    output is left as it was, instead of being renamed into place just before the
+    interruption is reported."""
 
 
 @contextlib.contextmanager

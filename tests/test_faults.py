@@ -283,6 +283,21 @@ def big_ply(tmp_path_factory) -> Path:
     return path
 
 
+def _stopped(pid: int, timeout: float = 10.0) -> bool:
+    """Wait until process ``pid`` is in the stopped state (``T`` in /proc), or has ended."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/stat", encoding="ascii") as handle:
+                state = handle.read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            return False
+        if state in "TtZX":
+            return state in "Tt"
+        time.sleep(0.0005)
+    return False
+
+
 def _stopped_while_writing(cmd, folder: Path) -> tuple[subprocess.Popen, str]:
     """Start ``cmd`` and stop it (SIGSTOP) as soon as its temporary output is in ``folder``;
     returns the stopped process and the temporary's name."""
@@ -293,7 +308,9 @@ def _stopped_while_writing(cmd, folder: Path) -> tuple[subprocess.Popen, str]:
             names = [n for n in os.listdir(folder) if atomic.is_temporary(n)]
             if names:
                 os.kill(proc.pid, signal.SIGSTOP)
-                if os.path.exists(folder / names[0]):
+                # SIGSTOP takes effect asynchronously: wait until the process is stopped
+                # before looking whether its temporary is still there.
+                if _stopped(proc.pid) and os.path.exists(folder / names[0]):
                     return proc, names[0]
                 os.kill(proc.pid, signal.SIGCONT)
             time.sleep(0.001)
