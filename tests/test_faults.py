@@ -283,6 +283,14 @@ def big_ply(tmp_path_factory) -> Path:
     return path
 
 
+def _default_signals() -> None:  # runs in the child before exec
+    """Default dispositions for the signals under test: a test run started under ``nohup``
+    or in the background of a shell inherits SIGHUP/SIGINT ignored, which the tools (rightly)
+    keep ignoring."""
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(signum, signal.SIG_DFL)
+
+
 def _stopped(pid: int, timeout: float = 10.0) -> bool:
     """Wait until process ``pid`` is in the stopped state (``T`` in /proc), or has ended."""
     deadline = time.monotonic() + timeout
@@ -302,7 +310,8 @@ def _stopped_while_writing(cmd, folder: Path) -> tuple[subprocess.Popen, str]:
     """Start ``cmd`` and stop it (SIGSTOP) as soon as its temporary output is in ``folder``;
     returns the stopped process and the temporary's name."""
     for _ in range(3):
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=_default_signals)
         deadline = time.monotonic() + 240
         while proc.poll() is None and time.monotonic() < deadline:
             names = [n for n in os.listdir(folder) if atomic.is_temporary(n)]
