@@ -1,7 +1,7 @@
 #!/usr/bin/env node
 // Remap cost per frame in the browser (a benchmark, not a timed test):
 //   node bench/remap-browser.mjs [--sizes 100000,1000000] [--laws affine,rigid,games]
-//                                [--backend webgl2|webgpu] [--json]
+//                                [--backend webgl2|webgpu] [--sort] [--json]
 // Headless Chromium (the flags of the conformance run: WebGL2 through SwiftShader when there is
 // no GPU), synthetic anchored splats on a deforming tube (64 x 64 vertices, 8064 faces). Per
 // frame: the anchor vertices uploaded (RGBA32F texture) and every splat remapped by the render's
@@ -9,6 +9,9 @@
 // readback each frame; median over >= 5 frames and >= 1.5 s. The CPU column is the JavaScript
 // path (remap-cpu.js, binary64, rotation + scale) on the same data, in the same browser.
 // --backend webgpu times the WGSL twin (fence: an awaited 1-texel readback).
+// --sort adds the cost of ordering the splats by their deformed positions in a rendered scene
+// (affine law): the deformed means computed into the engine's sort centres on the CPU, the
+// engine's sort in its worker, and the time until the sorted order arrives.
 
 import { launchPage } from '../conformance/run-browser.mjs';
 
@@ -37,8 +40,17 @@ async function main() {
                 if (!json) process.stderr.write(`  ${n} ${law}: ${r.medianMs.toFixed(1)} ms/frame (${r.frames} frames)\n`);
             }
         }
+        /** @type {any[]} */
+        const sortRows = [];
+        if (args.includes('--sort')) {
+            for (const n of sizes) {
+                const r = await browser.page.evaluate((n) => /** @type {any} */ (window).gsvBench.sort(n, 'affine'), n);
+                sortRows.push(r);
+                if (!json) process.stderr.write(`  sort ${n}: centres ${r.centresMs.toFixed(1)} ms, worker ${r.sortMs.toFixed(1)} ms\n`);
+            }
+        }
         if (json) {
-            process.stdout.write(`${JSON.stringify({ backend, rows }, null, 1)}\n`);
+            process.stdout.write(`${JSON.stringify({ backend, rows, sort: sortRows }, null, 1)}\n`);
             return;
         }
         const lines = [
@@ -51,6 +63,14 @@ async function main() {
         for (const r of rows) {
             lines.push(`| ${String(r.n).padEnd(9)} | ${r.law.padEnd(6)} | ${r.medianMs.toFixed(1).padStart(21)} | ${r.minMs.toFixed(1).padStart(7)} | `
                 + `${(r.n / (r.medianMs / 1000) / 1e6).toFixed(1).padStart(10)} M/s | ${r.cpuMs.toFixed(1).padStart(15)} |${r.finite ? '' : ' NON-FINITE OUTPUT'}`);
+        }
+        if (sortRows.length) {
+            lines.push('', 'Depth order of the deformed splats (affine law; medians per frame):', '',
+                '| splats    | sort centres (CPU, in setVertices) ms | engine sort (worker) ms | setVertices to sorted ms | vertex upload alone ms |',
+                '|-----------|---------------------------------------|-------------------------|--------------------------|------------------------|');
+            for (const r of sortRows) {
+                lines.push(`| ${String(r.n).padEnd(9)} | ${r.centresMs.toFixed(1).padStart(37)} | ${r.sortMs.toFixed(1).padStart(23)} | ${r.latencyMs.toFixed(1).padStart(24)} | ${r.uploadMs.toFixed(2).padStart(22)} |`);
+            }
         }
         process.stdout.write(`${lines.join('\n')}\n`);
     } finally {

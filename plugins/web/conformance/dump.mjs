@@ -108,6 +108,20 @@ export function readSuite(suiteDir) {
 }
 
 /**
+ * Every render case of a suite (suite.json `render_cases`; none in suites before the render
+ * level), in suite order.
+ * @param {string} suiteDir
+ * @returns {{folder: string, manifest: any}[]}
+ */
+export function readRenderSuite(suiteDir) {
+    const index = JSON.parse(readFileSync(join(suiteDir, 'suite.json'), 'utf8'));
+    return (index.render_cases || []).map((/** @type {{path: string}} */ entry) => {
+        const folder = join(suiteDir, entry.path);
+        return { folder, manifest: JSON.parse(readFileSync(join(folder, 'case.json'), 'utf8')) };
+    });
+}
+
+/**
  * A raw little-endian float32 file (a pose: (V, 3) anchor vertices).
  * @param {string} path
  * @returns {Float32Array}

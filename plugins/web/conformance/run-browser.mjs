@@ -1,6 +1,7 @@
 #!/usr/bin/env node
 // The conformance harness of the GPU path, in a real browser:
-//   node conformance/run-browser.mjs SUITE RESULTS [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]
+//   node conformance/run-browser.mjs SUITE RESULTS [--level numbers|render|all] [--fault NAME] [--cases GLOB]
+//                                    [--backend webgl2|webgpu] [--json]
 // serves the package and SUITE on localhost, starts headless Chromium (playwright-core, the
 // system /usr/bin/chromium or $CHROMIUM, WebGL2 through ANGLE/SwiftShader when there is no GPU),
 // imports every case with the PlayCanvas plugin, remaps every pose on the GPU with the same
@@ -10,15 +11,19 @@
 // deliberately broken shader (see src/playcanvas/shader.js FAULTS). --backend webgpu runs the
 // WGSL twin on PlayCanvas's WebGPU device (Chromium's WebGPU, SwiftShader adapter here). Then
 // `gsverse-conformance check SUITE RESULTS` judges it.
+// The render level (the suite's `render_cases`): every frame of every render case is rendered
+// by the engine with the plugin (conformance/page/render-cases.js) and written as
+// RESULTS/<id>/frame_NNN.png. --level picks the levels (default: both).
 
-import { mkdtempSync, readFileSync, rmSync } from 'node:fs';
-import { tmpdir } from 'node:os';
+import { mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
+import { cpus, loadavg, tmpdir } from 'node:os';
 import { join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 import { chromium } from 'playwright-core';
 
-import { matchesGlob, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
+import { matchesGlob, readRenderSuite, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
+import { encodePngRgb } from './png.mjs';
 import { startServer } from './server.mjs';
 
 const PKG_DIR = fileURLToPath(new URL('..', import.meta.url));
@@ -34,6 +39,49 @@ export const CHROMIUM_ARGS = [
 export const WEBGPU_ARGS = ['--enable-unsafe-webgpu', '--use-webgpu-adapter=swiftshader'];
 
 /**
+ * How much longer than on an idle machine browser work may take here: $GSVERSE_TIME_SCALE when
+ * set (the test runners pass theirs on), else the one-minute load average per CPU core, at
+ * least 1 and at most 8. Time limits of the browser runs and their tests are multiplied by it,
+ * so a busy machine is slower, not failing.
+ */
+export function timeScale() {
+    const fromEnv = Number(process.env.GSVERSE_TIME_SCALE);
+    const scale = Number.isFinite(fromEnv) && fromEnv > 0 ? fromEnv : loadavg()[0] / Math.max(1, cpus().length);
+    return Math.min(8, Math.max(1, scale));
+}
+
+/** Attempts at starting Chromium: a start that fails (a busy machine, a crashed helper process) is retried. */
+const LAUNCH_ATTEMPTS = 3;
+
+/**
+ * Start headless Chromium with a fresh profile, retrying a failed start (only the start: a
+ * failure after the browser is up is reported as it is).
+ * @param {boolean} webgpu
+ * @returns {Promise<{context: import('playwright-core').BrowserContext, userDataDir: string}>}
+ */
+async function launchBrowser(webgpu) {
+    let lastError = null;
+    for (let attempt = 1; attempt <= LAUNCH_ATTEMPTS; ++attempt) {
+        const userDataDir = mkdtempSync(join(tmpdir(), 'gsverse-chromium-'));
+        try {
+            const context = await chromium.launchPersistentContext(userDataDir, {
+                executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+                headless: true,
+                args: webgpu ? [...CHROMIUM_ARGS, ...WEBGPU_ARGS] : CHROMIUM_ARGS,
+                viewport: { width: 256, height: 256 },
+                timeout: 60000 * timeScale(),
+            });
+            return { context, userDataDir };
+        } catch (err) {
+            lastError = err;
+            rmSync(userDataDir, { recursive: true, force: true });
+            if (attempt < LAUNCH_ATTEMPTS) await new Promise((r) => setTimeout(r, 1000 * attempt));
+        }
+    }
+    throw new Error(`Chromium did not start (${LAUNCH_ATTEMPTS} attempts): ${lastError instanceof Error ? lastError.message.split('\n')[0] : lastError}`);
+}
+
+/**
  * Start the static server and headless Chromium on a page of this package.
  * @param {{suiteDir?: string, page?: string, extraMounts?: {[prefix: string]: string}, webgpu?: boolean}} options
  *   page: path under the package, e.g. 'conformance/page/index.html'
@@ -44,41 +92,35 @@ export async function launchPage(options) {
     const mounts = { '/pkg/': PKG_DIR, ...(options.extraMounts || {}) };
     if (options.suiteDir) mounts['/suite/'] = options.suiteDir;
     const server = await startServer(mounts);
-    const userDataDir = mkdtempSync(join(tmpdir(), 'gsverse-chromium-'));
+    /** @type {import('playwright-core').BrowserContext} */
     let context;
+    /** @type {string} */
+    let userDataDir;
     try {
-        context = await chromium.launchPersistentContext(userDataDir, {
-            executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
-            headless: true,
-            args: options.webgpu ? [...CHROMIUM_ARGS, ...WEBGPU_ARGS] : CHROMIUM_ARGS,
-            viewport: { width: 256, height: 256 },
-        });
+        ({ context, userDataDir } = await launchBrowser(!!options.webgpu));
     } catch (err) {
         await server.close();
-        rmSync(userDataDir, { recursive: true, force: true });
         throw err;
     }
+    const close = async () => {
+        await context.close();
+        await server.close();
+        rmSync(userDataDir, { recursive: true, force: true });
+    };
     const page = context.pages()[0] || await context.newPage();
     /** @type {string[]} */
     const consoleErrors = [];
     page.on('console', (msg) => { if (msg.type() === 'error') consoleErrors.push(msg.text()); });
     page.on('pageerror', (err) => consoleErrors.push(String(err)));
     const url = `${server.url}/pkg/${options.page || 'conformance/page/index.html'}`;
-    await page.goto(url);
     try {
-        await page.waitForFunction(() => /** @type {any} */ (window).gsvReady === true, null, { timeout: 30000 });
+        await page.goto(url, { timeout: 30000 * timeScale() });
+        await page.waitForFunction(() => /** @type {any} */ (window).gsvReady === true, null, { timeout: 30000 * timeScale() });
     } catch (err) {
+        await close();
         throw new Error(`the page did not start: ${consoleErrors.join(' | ') || err}`);
     }
-    return {
-        page,
-        url,
-        close: async () => {
-            await context.close();
-            await server.close();
-            rmSync(userDataDir, { recursive: true, force: true });
-        },
-    };
+    return { page, url, close };
 }
 
 /** @param {string} b64 */
@@ -156,6 +198,59 @@ export async function runSuiteInBrowser(suiteDir, resultsDir, options = {}) {
     }
 }
 
+/**
+ * Render every render case of a suite in the browser and write RESULTS/<id>/frame_NNN.png
+ * (or `refused` / `error`).
+ * @param {string} suiteDir
+ * @param {string} resultsDir
+ * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', log?: (line: string) => void}} [options]
+ */
+export async function runRenderCasesInBrowser(suiteDir, resultsDir, options = {}) {
+    const log = options.log || (() => {});
+    const t0 = performance.now();
+    const backendName = options.backend || 'webgl2';
+    const cases = readRenderSuite(suiteDir).filter(({ manifest }) => matchesGlob(manifest.id, options.cases));
+    /** @type {{id: string, kind: string, outcome: string, code?: string, ms: number}[]} */
+    const summary = [];
+    if (!cases.length) return { backend: null, summary, seconds: 0 };
+    const browser = await launchPage({ suiteDir, page: 'conformance/page/render-cases.html', webgpu: backendName === 'webgpu' });
+    try {
+        const backend = await browser.page.evaluate((b) => /** @type {any} */ (window).gsvRenderCases.init({ backend: b }), backendName);
+        for (const { manifest } of cases) {
+            const t1 = performance.now();
+            const folder = join(resultsDir, manifest.id);
+            rmSync(folder, { recursive: true, force: true });
+            mkdirSync(folder, { recursive: true });
+            let outcome = 'rendered';
+            /** @type {string|undefined} */
+            let code;
+            try {
+                const r = await browser.page.evaluate(
+                    ([path, fault, sortWaitMs]) => /** @type {any} */ (window).gsvRenderCases.renderCase(path, { fault, sortWaitMs }),
+                    /** @type {[string, string|null, number]} */ ([`cases/${manifest.id}`, options.fault || null, 3000 * timeScale()]));
+                if (r.refused !== undefined) {
+                    outcome = 'refused';
+                    code = r.code;
+                    writeFileSync(join(folder, 'refused'), `${r.refused}\n`);
+                } else {
+                    for (const f of r.frames) {
+                        writeFileSync(join(folder, f.name), encodePngRgb(f.width, f.height, new Uint8Array(Buffer.from(f.rgba, 'base64'))));
+                    }
+                }
+            } catch (err) {
+                outcome = 'error';
+                writeFileSync(join(folder, 'error'), `${err instanceof Error ? err.message : String(err)}\n`);
+            }
+            const ms = performance.now() - t1;
+            summary.push({ id: manifest.id, kind: 'render', outcome, code, ms });
+            log(`${outcome.padEnd(8)} ${manifest.id}${code ? ` ${code}` : ''} ${ms.toFixed(0)} ms`);
+        }
+        return { backend, summary, seconds: (performance.now() - t0) / 1000 };
+    } finally {
+        await browser.close();
+    }
+}
+
 async function main() {
     const args = process.argv.slice(2);
     /** @type {{[key: string]: string}} */
@@ -164,29 +259,53 @@ async function main() {
     /** @type {string[]} */
     const positional = [];
     for (let i = 0; i < args.length; ++i) {
-        if (args[i] === '--fault' || args[i] === '--cases' || args[i] === '--backend') values[args[i]] = args[++i];
+        if (['--fault', '--cases', '--backend', '--level'].includes(args[i])) values[args[i]] = args[++i];
         else if (args[i].startsWith('--')) flags.add(args[i]);
         else positional.push(args[i]);
     }
     if (positional.length !== 2) {
-        process.stderr.write('usage: node conformance/run-browser.mjs SUITE RESULTS [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]\n');
+        process.stderr.write('usage: node conformance/run-browser.mjs SUITE RESULTS [--level numbers|render|all] [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]\n');
+        process.exit(2);
+    }
+    const level = values['--level'] || 'all';
+    if (!['numbers', 'render', 'all'].includes(level)) {
+        process.stderr.write(`run-browser: --level must be numbers, render or all (got ${level})\n`);
         process.exit(2);
     }
     const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
     const json = flags.has('--json');
-    const { backend, summary, seconds } = await runSuiteInBrowser(suiteDir, resultsDir, {
+    const options = {
         fault: values['--fault'] || null,
         cases: values['--cases'],
         backend: /** @type {'webgl2'|'webgpu'} */ (values['--backend'] || 'webgl2'),
-        log: json ? undefined : (line) => process.stdout.write(`${line}\n`),
-    });
+        log: json ? undefined : (/** @type {string} */ line) => process.stdout.write(`${line}\n`),
+    };
+    let backend = null, seconds = 0;
+    /** @type {{id: string, kind: string, outcome: string, code?: string, ms: number}[]} */
+    const summary = [];
+    if (level !== 'render') {
+        const run = await runSuiteInBrowser(suiteDir, resultsDir, options);
+        ({ backend } = run);
+        seconds += run.seconds;
+        summary.push(...run.summary);
+    }
+    if (level !== 'numbers') {
+        const run = await runRenderCasesInBrowser(suiteDir, resultsDir, options);
+        backend = backend || run.backend;
+        seconds += run.seconds;
+        summary.push(...run.summary);
+        if (level === 'render' && run.backend) {
+            writeHarness(resultsDir, { name: '@gsverse/web PlayCanvas plugin (render level)', engine: `${run.backend.engine} ${run.backend.engine_version}`,
+                backend: `${run.backend.device}: ${run.backend.renderer}`, fault: options.fault });
+        }
+    }
     const count = (/** @type {string} */ o) => summary.filter((s) => s.outcome === o).length;
-    const totals = { cases: summary.length, remapped: count('remapped'), refused: count('refused'), errors: count('error') };
+    const totals = { cases: summary.length, remapped: count('remapped'), rendered: count('rendered'), refused: count('refused'), errors: count('error') };
     if (json) {
         process.stdout.write(`${JSON.stringify({ results: resultsDir, backend, seconds, ...totals, cases: summary }, null, 1)}\n`);
     } else {
-        process.stdout.write(`${totals.cases} cases: ${totals.remapped} remapped, ${totals.refused} refused, ${totals.errors} errors `
-            + `in ${seconds.toFixed(1)} s on ${backend.engine} ${backend.engine_version}, ${backend.device}: ${backend.renderer} -> ${resultsDir}\n`);
+        process.stdout.write(`${totals.cases} cases: ${totals.remapped} remapped, ${totals.rendered} rendered, ${totals.refused} refused, ${totals.errors} errors `
+            + `in ${seconds.toFixed(1)} s${backend ? ` on ${backend.engine} ${backend.engine_version}, ${backend.device}: ${backend.renderer}` : ''} -> ${resultsDir}\n`);
     }
     process.exit(totals.errors ? 1 : 0);
 }

@@ -40,12 +40,13 @@ export function expandFaceCounts(counts, splats) {
 
 /**
  * Derived `local` anchors of one splat primitive (spec/README.md §Writing anchors, steps 2–3),
- * in binary64.
+ * computed in binary64 and rounded once to float32, as the spec's readers use them (then like
+ * stored FLOAT anchors).
  * @typedef {object} DerivedAnchors
- * @property {Float64Array} barycentrics   (2N) b1, b2
- * @property {Float64Array} normalOffset   (N) d
- * @property {Float64Array} localRotation  (4N) q_l = conj(q_r) ⊗ q, unit, w >= 0
- * @property {Float64Array} localScale     (3N) s_l = s
+ * @property {Float32Array} barycentrics   (2N) b1, b2
+ * @property {Float32Array} normalOffset   (N) d
+ * @property {Float32Array} localRotation  (4N) q_l = conj(q_r) ⊗ q, unit, w >= 0
+ * @property {Float32Array} localScale     (3N) s_l = s
  */
 
 /**
@@ -54,7 +55,8 @@ export function expandFaceCounts(counts, splats) {
  * first corner of triangle f (spec §Triangle frames):
  *   (x, y, z) = R_rᵀ (μ − v0);  b2 = y / C_r[1,1];  b1 = (x − C_r[0,1] b2) / C_r[0,0];  d = z;
  *   q_l = conj(q_r) ⊗ q  (Hamilton product, x, y, z, w; q_r the quaternion of R_r);  s_l = s.
- * Everything is in binary64 from the dequantized rest pose. Returns the index of the first
+ * Everything is in binary64 from the dequantized rest pose, each result rounded once to float32
+ * at the end (spec §Derived `local` anchors). Returns the index of the first
  * splat whose face is degenerate at rest (C_r singular) instead, when there is one.
  * @param {{vertices: ArrayLike<number>, indices: ArrayLike<number>, faceCount: number}} mesh
  *   the anchor mesh (rest vertices in splat-local space)
@@ -89,10 +91,10 @@ export function deriveLocalAnchors(mesh, faceIndex, means, rotations, scales) {
     for (let i = 0; i < N; ++i) {
         if (!regular[faceIndex[i]]) return { anchors: null, degenerateSplat: i };
     }
-    const barycentrics = new Float64Array(2 * N);
-    const normalOffset = new Float64Array(N);
-    const localRotation = new Float64Array(4 * N);
-    const localScale = Float64Array.from(scales);
+    const barycentrics = new Float32Array(2 * N);
+    const normalOffset = new Float32Array(N);
+    const localRotation = new Float32Array(4 * N);
+    const localScale = Float32Array.from(scales);
     for (let i = 0; i < N; ++i) {
         const f = faceIndex[i];
         const r = 9 * f;

@@ -24,6 +24,10 @@ export const COMPONENT_TYPES = {
 /** @type {{[type: string]: number}} */
 export const TYPE_COMPONENTS = { SCALAR: 1, VEC2: 2, VEC3: 3, VEC4: 4 };
 
+/** TYPE_COMPONENTS and 4x4 matrices (read as FLOAT only, by GltfDocument.matrices). */
+/** @type {{[type: string]: number}} */
+const MATRIX_COMPONENTS = { ...TYPE_COMPONENTS, MAT4: 16 };
+
 /** Largest code of each normalized integer type (glTF 2.0 §3.11). */
 /** @type {{[type: number]: number}} */
 const NORMALIZED_TOP = { [BYTE]: 127, [UNSIGNED_BYTE]: 255, [SHORT]: 32767, [UNSIGNED_SHORT]: 65535 };
@@ -194,15 +198,17 @@ export class GltfDocument {
      * Nothing is read.
      * @param {unknown} index
      * @param {string} what
+     * @param {{[type: string]: number}} [components]  the accessor types read and their
+     *   components per element (default TYPE_COMPONENTS: no matrices)
      * @returns {{index: number, type: string, componentType: number, normalized: boolean,
      *   count: number, ncomp: number, size: number, stride: number, start: number, buffer: Uint8Array}}
      */
-    layout(index, what) {
+    layout(index, what, components = TYPE_COMPONENTS) {
         const acc = this.item('accessors', index, what);
         const i = /** @type {number} */ (index);
         const where = `${what} (accessor ${i})`;
         const type = acc.type;
-        if (!(type in TYPE_COMPONENTS)) throw new GltfError('ACCESSOR_INVALID', `${where} has unsupported type ${JSON.stringify(type)}`);
+        if (!(type in components)) throw new GltfError('ACCESSOR_INVALID', `${where} has unsupported type ${JSON.stringify(type)}`);
         const ct = acc.componentType;
         if (!(ct in COMPONENT_TYPES)) throw new GltfError('ACCESSOR_INVALID', `${where} has unknown componentType ${JSON.stringify(ct)}`);
         const normalized = acc.normalized === undefined ? false : acc.normalized;
@@ -216,7 +222,7 @@ export class GltfDocument {
         if (acc.bufferView === undefined) throw new GltfError('ACCESSOR_UNSUPPORTED', `${where} has no bufferView (compressed or placeholder data is not supported)`);
         const view = this.item('bufferViews', acc.bufferView, `${where}.bufferView`);
         const size = COMPONENT_TYPES[ct].size;
-        const ncomp = TYPE_COMPONENTS[type];
+        const ncomp = components[type];
         const elem = size * ncomp;
         const offset = acc.byteOffset === undefined ? 0 : acc.byteOffset;
         if (!isIndex(offset)) throw new GltfError('ACCESSOR_INVALID', `${where}.byteOffset must be a non-negative integer`);
@@ -305,6 +311,30 @@ export class GltfDocument {
             for (let c = 0; c < L.ncomp; ++c) values[e * L.ncomp + c] = get(p0 + c * L.size);
         }
         return { index: L.index, type: L.type, componentType: L.componentType, normalized: L.normalized, count: L.count, ncomp: L.ncomp, values };
+    }
+
+    /**
+     * The 4x4 matrices of a FLOAT MAT4 accessor (column-major, 16 numbers each; byteStride
+     * and byteOffset honoured, little-endian). Another type or component type is reported
+     * under `code`.
+     * @param {unknown} index
+     * @param {string} what
+     * @param {string} [code]
+     * @returns {{count: number, values: Float64Array}}
+     */
+    matrices(index, what, code = 'ACCESSOR_INVALID') {
+        const acc = this.item('accessors', index, what);
+        if (acc.type !== 'MAT4' || acc.componentType !== FLOAT || acc.normalized === true) {
+            throw new GltfError(code, `${what} (accessor ${index}) is ${JSON.stringify(acc.type)} of component type ${JSON.stringify(acc.componentType)}; it must be MAT4 FLOAT`);
+        }
+        const L = this.layout(index, what, MATRIX_COMPONENTS);
+        const dv = new DataView(L.buffer.buffer, L.buffer.byteOffset, L.buffer.byteLength);
+        const values = new Float64Array(16 * L.count);
+        for (let e = 0; e < L.count; ++e) {
+            const p0 = L.start + e * L.stride;
+            for (let c = 0; c < 16; ++c) values[16 * e + c] = dv.getFloat32(p0 + 4 * c, true);
+        }
+        return { count: L.count, values };
     }
 }
 
@@ -432,15 +462,14 @@ export function mat4Multiply(a, b) {
 }
 
 /**
- * The global matrix of every node (column-major), parents from `children`.
- * A node in a cycle or with two parents is reported as GLTF_SCHEMA_VIOLATION.
+ * The parent of every node (−1 for a root), from `children`. A child index out of range is
+ * UNRESOLVED_REFERENCE, a node with two parents GLTF_SCHEMA_VIOLATION.
  * @param {any} json
- * @returns {Float64Array[]}
+ * @returns {Int32Array}
  */
-export function globalMatrices(json) {
+export function nodeParents(json) {
     const nodes = Array.isArray(json.nodes) ? json.nodes : [];
-    /** @type {number[]} */
-    const parent = new Array(nodes.length).fill(-1);
+    const parent = new Int32Array(nodes.length).fill(-1);
     nodes.forEach((/** @type {any} */ node, /** @type {number} */ i) => {
         for (const c of (node && Array.isArray(node.children)) ? node.children : []) {
             if (!isIndex(c) || c >= nodes.length) throw new GltfError('UNRESOLVED_REFERENCE', `nodes[${i}].children: node ${JSON.stringify(c)} out of range`);
@@ -448,17 +477,35 @@ export function globalMatrices(json) {
             parent[c] = i;
         }
     });
+    return parent;
+}
+
+/**
+ * The global matrix of every node (column-major), parents from `children`.
+ * A node in a cycle or with two parents is reported as GLTF_SCHEMA_VIOLATION.
+ * Iterative: any depth of hierarchy.
+ * @param {any} json
+ * @returns {Float64Array[]}
+ */
+export function globalMatrices(json) {
+    const nodes = Array.isArray(json.nodes) ? json.nodes : [];
+    const parent = nodeParents(json);
     /** @type {(Float64Array|undefined)[]} */
     const out = new Array(nodes.length);
-    /** @param {number} i @param {number} depth @returns {Float64Array} */
-    const solve = (i, depth) => {
-        const done = out[i];
-        if (done) return done;
-        if (depth > nodes.length) throw new GltfError('GLTF_SCHEMA_VIOLATION', 'the node hierarchy has a cycle');
-        const local = nodeLocalMatrix(nodes[i] || {});
-        const g = parent[i] < 0 ? local : mat4Multiply(solve(parent[i], depth + 1), local);
-        out[i] = g;
-        return g;
-    };
-    return nodes.map((/** @type {any} */ _n, /** @type {number} */ i) => solve(i, 0));
+    /** @type {number[]} */
+    const chain = [];
+    for (let i = 0; i < nodes.length; ++i) {
+        // walk up to a solved node or a root, then solve the chain from the top down
+        chain.length = 0;
+        for (let j = i; j >= 0 && !out[j]; j = parent[j]) {
+            if (chain.length >= nodes.length) throw new GltfError('GLTF_SCHEMA_VIOLATION', 'the node hierarchy has a cycle');
+            chain.push(j);
+        }
+        for (let k = chain.length - 1; k >= 0; --k) {
+            const n = chain[k];
+            const local = nodeLocalMatrix(nodes[n] || {});
+            out[n] = parent[n] < 0 ? local : mat4Multiply(/** @type {Float64Array} */ (out[parent[n]]), local);
+        }
+    }
+    return /** @type {Float64Array[]} */ (out);
 }

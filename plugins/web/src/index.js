@@ -5,8 +5,18 @@ export { AnchorError, readAnchoredGlb, ANCHOR_ACCESSORS, EXTENSION, KHR } from '
 export { GltfError, parseGltf, dequantize, globalMatrices } from './glb.js';
 export { computeRest, triangleFrame, perp, EPS_DEGENERATE, GAMES_EPS } from './rest.js';
 export { expandFaceCounts, deriveLocalAnchors } from './compact.js';
-export { remapCpu, remapCpuRotationScale, localFaces, gamesFaces, gamesFrame } from './remap-cpu.js';
+export { remapCpu, remapCpuRotationScale, remapMeansInto, localFaces, gamesFaces, gamesFrame } from './remap-cpu.js';
 export {
     eigenSymmetric3, jacobi3, covToRotationScale, covToRotationScaleInto, rotationScaleToCov, matrixToQuat,
     matrixToQuatInto, quatToMatrix, JACOBI_SWEEPS,
 } from './decompose.js';
+export { AnchorAnimation, readAnchorAnimation } from './animation.js';
+
+// the shared types (src/types.js), for `import type { AnchoredPrimitive } from '@gsverse/web'`
+/** @typedef {import('./types.js').RestPose} RestPose */
+/** @typedef {import('./types.js').AnchorMesh} AnchorMesh */
+/** @typedef {import('./types.js').AnchoredPrimitive} AnchoredPrimitive */
+/** @typedef {import('./types.js').AnchoredGlb} AnchoredGlb */
+/** @typedef {import('./types.js').RestQuantities} RestQuantities */
+/** @typedef {import('./types.js').RemapOutput} RemapOutput */
+/** @typedef {import('./types.js').RotationScaleOutput} RotationScaleOutput */

@@ -217,6 +217,64 @@ function forEachSplat(prim, rest, vertices, means, visit) {
 }
 
 /**
+ * Means only, for ordering splats by their deformed positions every frame (a renderer's depth
+ * sort): per face v0, e1, e2 and the scaled normal m once, then per splat
+ * v0 + (b1 e1 + b2 e2 + d m) (`local`) or v0 + (α1 e1 + α2 e2) (`games`), the same arithmetic
+ * as the full remap, without covariances. `order` (optional) permutes the output rows:
+ * row r receives file splat order[r] (a renderer's own splat order).
+ * @param {AnchoredPrimitive} prim
+ * @param {RestQuantities|null|undefined} rest  from computeRest(prim) (computed when null; unused by games)
+ * @param {ArrayLike<number>} vertices  (3V) current anchor vertices, splat-local space
+ * @param {Float32Array} [out]  (3N) receives the means
+ * @param {ArrayLike<number>|null} [order]  row r <- file splat order[r]
+ * @returns {Float32Array}
+ */
+export function remapMeansInto(prim, rest, vertices, out = new Float32Array(3 * prim.count), order = null) {
+    checkVertices(prim, vertices);
+    const idx = prim.anchorMesh.indices;
+    const F = prim.anchorMesh.faceCount;
+    const N = prim.count;
+    const games = prim.profile === 'games';
+    const rq = games ? null : (rest || computeRest(prim));
+    const v = vertices;
+    // per face: v0 (3), e1 (3), e2 (3), m (3)
+    const faces = new Float64Array(12 * F);
+    const frame = new Float64Array(9);
+    for (let f = 0; f < F; ++f) {
+        const b = 12 * f;
+        const i0 = 3 * idx[3 * f], i1 = 3 * idx[3 * f + 1], i2 = 3 * idx[3 * f + 2];
+        const x0 = v[i0], y0 = v[i0 + 1], z0 = v[i0 + 2];
+        const e1x = v[i1] - x0, e1y = v[i1 + 1] - y0, e1z = v[i1 + 2] - z0;
+        const e2x = v[i2] - x0, e2y = v[i2 + 1] - y0, e2z = v[i2 + 2] - z0;
+        faces[b] = x0; faces[b + 1] = y0; faces[b + 2] = z0;
+        faces[b + 3] = e1x; faces[b + 4] = e1y; faces[b + 5] = e1z;
+        faces[b + 6] = e2x; faces[b + 7] = e2y; faces[b + 8] = e2z;
+        if (games || !rq) continue;
+        if (rq.regular[f]) {
+            const cx = e1y * e2z - e1z * e2y, cy = e1z * e2x - e1x * e2z, cz = e1x * e2y - e1y * e2x;
+            const rootC = Math.sqrt(Math.sqrt(cx * cx + cy * cy + cz * cz));
+            const k = rootC > 0 ? rq.invSqrtArea[f] / rootC : 0;
+            faces[b + 9] = cx * k; faces[b + 10] = cy * k; faces[b + 11] = cz * k;
+        } else {
+            triangleFrame(e1x, e1y, e1z, e2x, e2y, e2z, frame, 0);
+            faces[b + 9] = frame[2]; faces[b + 10] = frame[5]; faces[b + 11] = frame[8];
+        }
+    }
+    const face = prim.faceIndex;
+    const bary = prim.barycentrics;
+    const d = games ? null : /** @type {Float32Array} */ (prim.normalOffset);
+    for (let r = 0; r < N; ++r) {
+        const i = order ? order[r] : r;
+        const b = 12 * face[i];
+        const b1 = bary[2 * i], b2 = bary[2 * i + 1], di = d ? d[i] : 0;
+        out[3 * r] = faces[b] + (b1 * faces[b + 3] + b2 * faces[b + 6] + di * faces[b + 9]);
+        out[3 * r + 1] = faces[b + 1] + (b1 * faces[b + 4] + b2 * faces[b + 7] + di * faces[b + 10]);
+        out[3 * r + 2] = faces[b + 2] + (b1 * faces[b + 5] + b2 * faces[b + 8] + di * faces[b + 11]);
+    }
+    return out;
+}
+
+/**
  * @param {Float64Array} m  row-major 3x3
  * @param {Float64Array|Float32Array} cov
  * @param {number} o

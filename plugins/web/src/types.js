@@ -43,7 +43,7 @@
  *   splat, or per-face splat counts (splats grouped by face), expanded to faceIndex on import
  * @property {boolean} derived  true when the file stores no `local` anchors but the face
  *   (no barycentrics): barycentrics, normalOffset, localRotation and localScale were derived on
- *   import in binary64 from the rest pose and the rest anchor triangles (Float64Array then)
+ *   import in binary64 from the rest pose and the rest anchor triangles, rounded once to float32
  * @property {Uint32Array} faceIndex     (N)
  * @property {Float32Array|Float64Array} barycentrics (2N) b1, b2 (local) or α1, α2 (games), dequantized; b0 = 1 − b1 − b2
  * @property {Float32Array|Float64Array|null} normalOffset  (N) local only
@@ -58,7 +58,7 @@
  * @typedef {object} AnchoredGlb
  * @property {AnchoredPrimitive[]} anchored  every anchored splat primitive
  * @property {{mesh: number, primitive: number}[]} plain  KHR splat primitives without anchors
- * @property {any} json  the glTF JSON document
+ * @property {{[key: string]: any}} json  the glTF JSON document (as parsed)
  */
 
 /**

@@ -158,11 +158,11 @@ test('derived local anchors, by hand: b1, b2, d in the rest frame and q_l = conj
     });
     assert.equal(flat.derived, true);
     assert.equal(flat.faceEncoding, 'faceIndex');
-    assert.ok(flat.barycentrics instanceof Float64Array);
+    assert.ok(flat.barycentrics instanceof Float32Array, 'derived anchors are rounded once to float32');
     close(flat.barycentrics, [0.25, 0.5], 1e-15, 'b');
-    close(/** @type {Float64Array} */ (flat.normalOffset), [0.125], 1e-15, 'd');
-    close(/** @type {Float64Array} */ (flat.localRotation), [0, 0, Math.fround(0.6), Math.fround(0.8)], 1e-7, 'q_l = q');
-    assert.deepEqual(Array.from(/** @type {Float64Array} */ (flat.localScale)), [0.125, 0.375, 0.0625]);
+    close(/** @type {Float32Array} */ (flat.normalOffset), [0.125], 1e-15, 'd');
+    close(/** @type {Float32Array} */ (flat.localRotation), [0, 0, Math.fround(0.6), Math.fround(0.8)], 1e-7, 'q_l = q');
+    assert.deepEqual(Array.from(/** @type {Float32Array} */ (flat.localScale)), [0.125, 0.375, 0.0625]);
     // a triangle in the x = 0 plane: t = y, n = x, b = n × t = z; R_r maps x→y→z→x, the rotation
     // by 120° about (1, 1, 1): q_r = (0.5, 0.5, 0.5, 0.5). C_r = [[2, 0], [0, 1]].
     const turned = read({
@@ -170,8 +170,8 @@ test('derived local anchors, by hand: b1, b2, d in the rest frame and q_l = conj
         face: [0], bary: [], means: [0.125, 0.5, 0.25], rotations: [0.5, 0.5, 0.5, 0.5], scales: [0.1, 0.2, 0.3], derived: true,
     });
     close(turned.barycentrics, [0.25, 0.25], 1e-15, 'b');
-    close(/** @type {Float64Array} */ (turned.normalOffset), [0.125], 1e-15, 'd');
-    close(/** @type {Float64Array} */ (turned.localRotation), [0, 0, 0, 1], 1e-15, 'q_l');
+    close(/** @type {Float32Array} */ (turned.normalOffset), [0.125], 1e-15, 'd');
+    close(/** @type {Float32Array} */ (turned.localRotation), [0, 0, 0, 1], 1e-15, 'q_l');
     assert.equal(turned.deformation, 'rigid');
 });
 
@@ -191,8 +191,8 @@ for (const deformation of ['affine', 'rigid']) {
         // the same anchors stored explicitly (float32) remap to the same splats
         const stored = read({
             ...spec, derived: false, faceCounts: undefined,
-            bary: Array.from(p.barycentrics), offset: Array.from(/** @type {Float64Array} */ (p.normalOffset)),
-            rotation: Array.from(/** @type {Float64Array} */ (p.localRotation)), scale: Array.from(/** @type {Float64Array} */ (p.localScale)),
+            bary: Array.from(p.barycentrics), offset: Array.from(/** @type {Float32Array} */ (p.normalOffset)),
+            rotation: Array.from(/** @type {Float32Array} */ (p.localRotation)), scale: Array.from(/** @type {Float32Array} */ (p.localScale)),
         });
         const pose = deform(p.anchorMesh.vertices);
         const a = remapCpu(p, rest, pose);

@@ -253,3 +253,16 @@ export function anchoredBuilder(s) {
 export function anchoredGlb(s) {
     return anchoredBuilder(s).glb();
 }
+
+/**
+ * A FLOAT MAT4 accessor of column-major 4x4 matrices (16 numbers each), in its own buffer view.
+ * @param {GltfBuilder} b
+ * @param {ArrayLike<number>} matrices  16 numbers per matrix
+ * @returns {number} accessor index
+ */
+export function matrixAccessor(b, matrices) {
+    const data = Float32Array.from(matrices);
+    const bufferView = b.view(new Uint8Array(data.buffer));
+    b.json.accessors.push({ bufferView, componentType: 5126, count: data.length / 16, type: 'MAT4' });
+    return b.json.accessors.length - 1;
+}

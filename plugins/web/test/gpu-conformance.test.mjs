@@ -13,7 +13,7 @@ import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
-import { runSuiteInBrowser } from '../conformance/run-browser.mjs';
+import { runSuiteInBrowser, timeScale } from '../conformance/run-browser.mjs';
 
 const chromium = process.env.CHROMIUM || '/usr/bin/chromium';
 const repoVenv = fileURLToPath(new URL('../../../.venv/bin/gsverse-conformance', import.meta.url));
@@ -29,16 +29,16 @@ const cli = findCli();
 const skip = !existsSync(chromium) ? `no Chromium at ${chromium}` : !cli ? 'no gsverse-conformance CLI' : false;
 
 /**
- * `gsverse-conformance check --format json`
+ * `gsverse-conformance check --format json --level numbers` (the render level: tests/test_web_plugin.py)
  * @param {string} suite @param {string} results
  * @returns {any}
  */
 function check(suite, results) {
-    const r = spawnSync(/** @type {string} */ (cli), ['check', suite, results, '--format', 'json'], { encoding: 'utf8', maxBuffer: 1 << 28 });
+    const r = spawnSync(/** @type {string} */ (cli), ['check', suite, results, '--format', 'json', '--level', 'numbers'], { encoding: 'utf8', maxBuffer: 1 << 28 });
     return JSON.parse(r.stdout);
 }
 
-test('GPU remap in Chromium passes the suite; broken shaders fail exactly their cases', { skip, timeout: 600_000 }, async (t) => {
+test('GPU remap in Chromium passes the suite; broken shaders fail exactly their cases', { skip, timeout: 600_000 * timeScale() }, async (t) => {
     const tmp = mkdtempSync(join(tmpdir(), 'gsverse-gpu-'));
     try {
         let suite = process.env.GSVERSE_SUITE;

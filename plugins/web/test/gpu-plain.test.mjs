@@ -8,7 +8,7 @@ import { existsSync, mkdtempSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 
-import { launchPage } from '../conformance/run-browser.mjs';
+import { launchPage, timeScale } from '../conformance/run-browser.mjs';
 import { KHR, anchoredBuilder } from './glb-writer.mjs';
 
 const chromium = process.env.CHROMIUM || '/usr/bin/chromium';
@@ -51,7 +51,7 @@ function mixedAsset() {
     return b.glb();
 }
 
-test('plain splats stay put while anchored ones follow the anchor mesh', { skip: existsSync(chromium) ? false : `no Chromium at ${chromium}`, timeout: 120_000 }, async () => {
+test('plain splats stay put while anchored ones follow the anchor mesh', { skip: existsSync(chromium) ? false : `no Chromium at ${chromium}`, timeout: 120_000 * timeScale() }, async () => {
     const dir = mkdtempSync(join(tmpdir(), 'gsverse-mixed-'));
     writeFileSync(join(dir, 'mixed.glb'), mixedAsset());
     const browser = await launchPage({ page: 'conformance/page/render.html', extraMounts: { '/assets/': dir } });

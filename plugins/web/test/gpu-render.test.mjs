@@ -7,18 +7,18 @@ import assert from 'node:assert/strict';
 import { existsSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 
-import { launchPage } from '../conformance/run-browser.mjs';
+import { launchPage, timeScale } from '../conformance/run-browser.mjs';
 
 const chromium = process.env.CHROMIUM || '/usr/bin/chromium';
 const examples = fileURLToPath(new URL('../../../examples', import.meta.url));
-const asset = `${examples}/capsule/anchored.glb`;
-const skip = !existsSync(chromium) ? `no Chromium at ${chromium}` : !existsSync(asset) ? 'no examples/capsule/anchored.glb' : false;
+const asset = `${examples}/web/capsule.glb`;
+const skip = !existsSync(chromium) ? `no Chromium at ${chromium}` : !existsSync(asset) ? 'no examples/web/capsule.glb' : false;
 
-test('the example renders through the work-buffer remap and follows a stretch', { skip, timeout: 180_000 }, async () => {
+test('the example renders through the work-buffer remap and follows a stretch', { skip, timeout: 180_000 * timeScale() }, async () => {
     const browser = await launchPage({ page: 'conformance/page/render.html', extraMounts: { '/examples/': examples } });
     try {
         const page = browser.page;
-        const info = await page.evaluate(() => /** @type {any} */ (window).gsvRender.load('/examples/capsule/anchored.glb'));
+        const info = await page.evaluate(() => /** @type {any} */ (window).gsvRender.load('/examples/web/capsule.glb'));
         assert.deepEqual(info.splats.length, 1);
         const cmp = await page.evaluate(() => /** @type {any} */ (window).gsvRender.compareToEngine());
         assert.ok(cmp.lit > 500, `the rest pose renders (${cmp.lit} lit pixels)`);

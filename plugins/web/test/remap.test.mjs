@@ -5,7 +5,7 @@ import assert from 'node:assert/strict';
 
 import { readAnchoredGlb } from '../src/anchor.js';
 import { computeRest } from '../src/rest.js';
-import { remapCpu, remapCpuRotationScale } from '../src/remap-cpu.js';
+import { remapCpu, remapCpuRotationScale, remapMeansInto } from '../src/remap-cpu.js';
 import { quatToMatrix, rotationScaleToCov } from '../src/decompose.js';
 import { anchoredGlb } from './glb-writer.mjs';
 
@@ -267,4 +267,22 @@ test('a collapsed current triangle gives finite output; m = 0 when a_c = 0', () 
     const seg = remapCpu(p, null, [0, 0, 0, 2, 0, 0, 1, 0, 0]);
     close(seg.means, [0.25 * 2 + 0.5 * 1, 0, 0], 1e-7, 'mean on a segment: no normal offset');
     for (const x of seg.cov) assert.ok(Number.isFinite(x));
+});
+
+test('means-only remap (the depth-sort centres) equals the full remap, in any row order', () => {
+    for (const [profile, deformation] of [['local', 'affine'], ['local', 'rigid'], ['games', undefined]]) {
+        const p = randomAsset(/** @type {'local'|'games'} */ (profile), deformation);
+        const pose = Float32Array.from(p.anchorMesh.vertices, (x, i) => x * (1 + 0.3 * Math.sin(i)) - 0.1 * Math.cos(i));
+        const full = remapCpu(p, null, pose).means;
+        assert.deepEqual(remapMeansInto(p, null, pose), full, `${profile} ${deformation}`);
+        const order = Uint32Array.from({ length: p.count }, (_, r) => (r * 7 + 3) % p.count);
+        const rows = remapMeansInto(p, computeRest(p), pose, new Float32Array(3 * p.count), order);
+        for (let r = 0; r < p.count; ++r) {
+            for (let k = 0; k < 3; ++k) assert.equal(rows[3 * r + k], full[3 * order[r] + k], `${profile} row ${r}`);
+        }
+    }
+    // a face degenerate at rest: m is the current frame normal (worked example 4)
+    const deg = prim({ vertices: [0, 0, 0, 2, 0, 0, 1, 0, 0], indices: [0, 1, 2], face: [0], bary: [0.25, 0.25], offset: [0.125],
+        rotation: [0, 0, 0, 1], scale: [0.125, 0.375, 0.0625], profile: 'local', deformation: 'affine' });
+    close(remapMeansInto(deg, null, [0, 0, 0, 0, 2, 0, 0, 1, 0]), [0, 0.75, -0.125], 1e-7, 'degenerate at rest');
 });

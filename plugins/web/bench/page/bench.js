@@ -4,7 +4,7 @@
 // The CPU path (remap-cpu.js, binary64) is timed on the same data for comparison.
 
 import * as pc from 'playcanvas';
-import { AnchorGpuData } from '../../src/playcanvas/index.js';
+import { AnchorGpuData, AnchoredSplat } from '../../src/playcanvas/index.js';
 import { RemapProbe } from '../../src/playcanvas/probe.js';
 import { computeRest } from '../../src/rest.js';
 import { remapCpuRotationScale } from '../../src/remap-cpu.js';
@@ -205,5 +205,67 @@ async function run(n, law, opts = {}) {
     return { n, law, faces: prim.anchorMesh.faceCount, vertices: prim.anchorMesh.vertexCount, frames: frames.length, medianMs: median, meanMs: mean, minMs: frames[0], cpuMs, finite };
 }
 
-/** @type {any} */ (window).gsvBench = { init, run };
+/**
+ * The cost of ordering splats by their deformed positions, per frame, in a rendered scene:
+ * `setVertices` computes the deformed means into the engine's sort centres (`centresMs`, CPU),
+ * the engine sends them to its sort worker and sorts (`sortMs`, the worker's own time from
+ * 'gsplat:sorted'), and the sorted order arrives `latencyMs` after setVertices. The same
+ * frames with `sortDeformed = false` give the upload alone (`uploadMs`).
+ * @param {number} n @param {'affine'|'rigid'|'games'} law @param {{frames?: number}} [opts]
+ */
+async function sort(n, law, opts = {}) {
+    const a = /** @type {any} */ (app);
+    const prim = synthetic(n, law);
+    const resource = engineResource(prim);
+    const gpu = new AnchorGpuData(a.graphicsDevice, resource, prim, 'synthetic');
+    const entity = new pc.Entity('splats');
+    entity.addComponent('gsplat', { unified: true });
+    /** @type {any} */ (entity.gsplat).resource = resource;
+    a.root.addChild(entity);
+    if (!a.root.findByName('bench camera')) {
+        const camera = new pc.Entity('bench camera');
+        camera.addComponent('camera', { clearColor: new pc.Color(0, 0, 0), fov: 50 });
+        camera.setPosition(0, 0, 7);
+        a.root.addChild(camera);
+        a.autoRender = false;
+        a.start();
+    }
+    const splat = new AnchoredSplat(gpu, entity, [entity.gsplat], null, null);
+    let sorts = 0, lastSortTime = 0;
+    const onSorted = (/** @type {number} */ t) => { sorts++; lastSortTime = t; };
+    a.scene.on('gsplat:sorted', onSorted);
+    const frame = () => new Promise((resolve) => { a.once('frameend', () => resolve(undefined)); a.renderNextFrame = true; });
+    const rest = prim.anchorMesh.vertices;
+    const verts = new Float32Array(rest.length);
+    /** @type {{centresMs: number, sortMs: number, latencyMs: number, uploadMs: number}[]} */
+    const rows = [];
+    const count = opts.frames ?? 6;
+    for (let i = 0; i < count + 1; ++i) {
+        deform(rest, verts, 0.7 * i);
+        const before = sorts;
+        const t0 = performance.now();
+        splat.setVertices(verts);
+        const centresMs = splat.lastSortMs;
+        const t1 = performance.now();
+        while (sorts === before && performance.now() - t1 < 30000) await frame();
+        const latencyMs = performance.now() - t0;
+        splat.sortDeformed = false;
+        splat.setVertices(verts);
+        const uploadMs = splat.lastRemapMs;
+        splat.sortDeformed = true;
+        if (i > 0) rows.push({ centresMs, sortMs: lastSortTime, latencyMs, uploadMs });   // frame 0 warms up
+    }
+    a.scene.off('gsplat:sorted', onSorted);
+    splat.destroy();
+    entity.destroy();
+    resource.destroy();
+    const med = (/** @type {number[]} */ x) => x.slice().sort((p, q) => p - q)[Math.floor(x.length / 2)];
+    return {
+        n, law, frames: rows.length,
+        centresMs: med(rows.map((r) => r.centresMs)), sortMs: med(rows.map((r) => r.sortMs)),
+        latencyMs: med(rows.map((r) => r.latencyMs)), uploadMs: med(rows.map((r) => r.uploadMs)),
+    };
+}
+
+/** @type {any} */ (window).gsvBench = { init, run, sort };
 /** @type {any} */ (window).gsvReady = true;

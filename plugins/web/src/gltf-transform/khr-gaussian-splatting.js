@@ -38,10 +38,15 @@ export class GaussianSplatting extends ExtensionProperty {
     get extensionName() { return KHR_GAUSSIAN_SPLATTING; }
     /** @returns {'GaussianSplatting'} */
     get propertyType() { return 'GaussianSplatting'; }
-    /** @returns {string[]} */
+    // the precise types below keep these members in the generated declarations (types/), where
+    // ExtensionProperty's abstract members must be implemented
+    /** @returns {['Primitive']} */
     get parentTypes() { return [PropertyType.PRIMITIVE]; }
 
-    /** @protected */
+    /**
+     * @protected
+     * @returns {undefined}
+     */
     init() {
         /** @type {boolean} read from a file (false when made with the API) */
         this.readFromFile = false;

@@ -96,10 +96,15 @@ export class MeshAnchor extends ExtensionProperty {
     get extensionName() { return GSVERSE_MESH_ANCHOR; }
     /** @returns {'MeshAnchor'} */
     get propertyType() { return 'MeshAnchor'; }
-    /** @returns {string[]} */
+    // the precise types below keep these members in the generated declarations (types/), where
+    // ExtensionProperty's abstract members must be implemented
+    /** @returns {['Primitive']} */
     get parentTypes() { return [PropertyType.PRIMITIVE]; }
 
-    /** @protected */
+    /**
+     * @protected
+     * @returns {undefined}
+     */
     init() {
         /** @type {ReadState | null} what was read (null for an anchor made with the API) */
         this.readState = null;

@@ -1,6 +1,7 @@
 /**
  * @gsverse/web/playcanvas: mesh-anchored Gaussian splats (GSVERSE_gaussian_splatting_mesh_anchor)
- * remapped on the GPU inside PlayCanvas 2.23.3's unified gsplat pipeline.
+ * remapped on the GPU inside PlayCanvas's unified gsplat pipeline (versions: SUPPORTED_PLAYCANVAS,
+ * checked by engine.js).
  *
  *   import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
  *   const { root, anchored, plain } = await loadAnchoredAsset(app, 'asset.glb' | bytes, {
@@ -9,9 +10,11 @@
  *       showAnchorMesh,  // keep the anchor mesh's own render component enabled (default false)
  *       fault,           // testing only: a deliberately broken shader variant (see shader.js)
  *   });
- *   // root:     the glTF scene instantiated by the engine's container loader (rest pose)
- *   // anchored: AnchoredSplat[], one per anchored splat primitive
- *   // plain:    Entity[] holding the plain (unanchored) splats, left untouched
+ *   // root:       the glTF scene instantiated by the engine's container loader (rest pose)
+ *   // anchored:   AnchoredSplat[], one per anchored splat primitive
+ *   // plain:      Entity[] holding the plain (unanchored) splats, left untouched
+ *   // animations: [{index, name, duration}] the file's animations of its animated anchor
+ *   //             meshes (skin, morph targets; spec §Animated anchor meshes), [] when none
  *
  *   const s = anchored[0];
  *   s.prim             // AnchoredPrimitive (../types.js): rest pose, anchors, anchorMesh, file order
@@ -24,7 +27,13 @@
  *   s.vertices         // copy of the current vertices
  *   s.reset()          // back to the rest vertices
  *   s.enabled = false  // remove the remap (the engine renders its stored rest pose); true again to remap
- *   s.lastRemapMs      // CPU time of the last setVertices (upload + work-buffer scheduling), ms
+ *   s.animation        // AnchorAnimation (../animation.js) of an animated anchor mesh, or null
+ *   s.setAnimationTime(i, t)  // pose the anchor mesh as the file's animation i at t seconds
+ *                      // (the asset's own skin and morph targets, sampled in JS); returns the vertices
+ *   s.lastRemapMs      // CPU time of the last setVertices (vertex upload + sort centres), ms
+ *   s.lastSortMs       // the part of it spent on the deformed sort centres, ms
+ *   s.sortDeformed     // true (default): splats are depth-sorted by their deformed positions
+ *   s.sortPending      // true until the engine has sorted the current pose (paced by 'gsplat:sorted')
  *   s.destroy()
  *
  * Refused assets throw AnchorError (../anchor.js) with `.code` and a one-line message.
@@ -33,22 +42,34 @@
  */
 
 import {
-    Asset, Entity, GSplatData, Texture,
+    Asset, Entity, GSplatData, Texture, Vec3,
     ADDRESS_CLAMP_TO_EDGE, FILTER_NEAREST, PIXELFORMAT_RGBA32F, PIXELFORMAT_RGBA32U,
 } from 'playcanvas';
 import { AnchorError, readAnchoredGlb } from '../anchor.js';
+import { readAnchorAnimation } from '../animation.js';
+import { parseGltf } from '../glb.js';
 import { computeRest } from '../rest.js';
+import { remapMeansInto } from '../remap-cpu.js';
+import { centersChanged, checkComponent, checkEngine, checkResource, meshSplatAssets } from './engine.js';
 import { STREAM_ANCHOR, STREAM_LOCAL_ROT, STREAM_LOCAL_SCALE, modifyChunkGLSL } from './shader.js';
 import { modifyChunkWGSL } from './shader-wgsl.js';
 
 export { FAULTS, remapChunkGLSL, modifyChunkGLSL, processChunkGLSL } from './shader.js';
 export { remapChunkWGSL, modifyChunkWGSL, processChunkWGSL } from './shader-wgsl.js';
 export { AnchorError };
+export { SUPPORTED_PLAYCANVAS, PLAYCANVAS_VERSION } from './engine.js';
 
 /** @typedef {import('../types.js').AnchoredPrimitive} AnchoredPrimitive */
 /** @typedef {import('../types.js').RestQuantities} RestQuantities */
+/** @typedef {import('../animation.js').AnchorAnimation} AnchorAnimation */
+/** @typedef {import('../animation.js').AnimationInfo} AnimationInfo */
 /** @typedef {import('playcanvas').AppBase} AppBase */
 /** @typedef {import('playcanvas').GraphicsDevice} GraphicsDevice */
+/** @typedef {import('playcanvas').GSplatResource} GSplatResource */
+/** @typedef {import('playcanvas').GSplatComponent} GSplatComponent */
+
+/** How long a handed-over set of sort centres holds later ones back at most (ms). */
+const SORT_WAIT_MS = 1000;
 
 /** Largest width of the data textures (every WebGL2 device supports 4096). */
 const MAX_WIDTH = 4096;
@@ -152,7 +173,7 @@ function fillStreams(resource, prim, order) {
 export class AnchorGpuData {
     /**
      * @param {GraphicsDevice} device
-     * @param {any} resource  the engine's GSplatResource of the primitive
+     * @param {GSplatResource} resource  the engine's splat resource of the primitive
      * @param {AnchoredPrimitive} prim
      * @param {string} [fileName]
      */
@@ -160,9 +181,11 @@ export class AnchorGpuData {
         this.device = device;
         this.resource = resource;
         this.prim = prim;
+        checkResource(resource);
         /** @type {RestQuantities} */
         this.rest = computeRest(prim);
         this.order = engineRowOrder(prim.rest.means);
+        /** @type {any} the engine's rows (GSplatData for glTF splats; other layouts are not compared) */
         const data = resource.gsplatData;
         if (resource.numSplats !== prim.count) {
             throw new AnchorError('ENGINE_MISMATCH', `${fileName}: the engine loaded ${resource.numSplats} splats, the file has ${prim.count}`);
@@ -173,7 +196,7 @@ export class AnchorGpuData {
             for (let r = 0; r < prim.count; ++r) {
                 const i = this.order[r];
                 if (!(Object.is(x[r], m[3 * i]) && Object.is(y[r], m[3 * i + 1]) && Object.is(z[r], m[3 * i + 2]))) {
-                    throw new AnchorError('ENGINE_MISMATCH', `${fileName}: the engine's splat row ${r} does not hold file splat ${i} (unexpected row order; PlayCanvas 2.23.3 Morton order assumed)`);
+                    throw new AnchorError('ENGINE_MISMATCH', `${fileName}: the engine's splat row ${r} does not hold file splat ${i} (unexpected row order; the engine's Morton order, GSplatData#calcMortonOrder, assumed)`);
                 }
             }
         }
@@ -221,7 +244,7 @@ export class AnchorGpuData {
         this.verticesTex.unlock();
     }
 
-    /** The uniforms of the remap chunk. @returns {[string, any][]} */
+    /** The uniforms of the remap chunk. @returns {[string, Texture|number][]} */
     parameters() {
         return [['gsvVertices', this.verticesTex], ['gsvFaces', this.faces], ['gsvRest', this.restTex], ['gsvLaw', this.law]];
     }
@@ -233,16 +256,33 @@ export class AnchorGpuData {
     }
 }
 
-/** One anchored splat primitive rendered by the engine and remapped on the GPU. */
+/**
+ * One anchored splat primitive rendered by the engine and remapped on the GPU.
+ *
+ * Depth order: PlayCanvas (WebGL2) sorts splats on the CPU, in a worker, by the resource's
+ * `centers`. Every `setVertices` also computes the deformed means on the CPU (`remapMeansInto`:
+ * per face v0, e1, e2 and m once, then three multiply-adds per coordinate and splat, in the
+ * engine's row order) into those centres, grows the resource's bounds to hold them, and tells
+ * the engine they changed, so the next frames are drawn back to front in the *deformed* pose.
+ *
+ * The engine shows new centres only once its worker has sorted them (a new world state, drawn
+ * when sorted), so new centres on every frame of a moving body would hold the picture back for
+ * as long as the body moves. At most one set of centres is therefore in flight: while the
+ * engine has not reported a sort ('gsplat:sorted') since the last set was handed over, later
+ * poses only mark the centres stale, and the sort report hands over the newest pose's centres.
+ * (A sort not reported within SORT_WAIT_MS, e.g. while nothing is drawn, releases the gate.)
+ */
 export class AnchoredSplat {
     /**
      * @param {AnchorGpuData} gpu
      * @param {Entity} entity
-     * @param {any[]} components  every gsplat component showing this primitive
+     * @param {GSplatComponent[]} components  every gsplat component showing this primitive
      * @param {Entity|null} anchorEntity
      * @param {string|null} fault
+     * @param {{fire: Function, on: Function, off: Function}|null} [scene]  the app's scene, whose
+     *   'gsplat:sorted' events pace the sort centres (without it every setVertices hands them over)
      */
-    constructor(gpu, entity, components, anchorEntity, fault) {
+    constructor(gpu, entity, components, anchorEntity, fault, scene = null) {
         /** @type {AnchorGpuData} */
         this.gpu = gpu;
         /** @type {AnchoredPrimitive} */
@@ -255,12 +295,43 @@ export class AnchoredSplat {
         this.order = gpu.order;
         /** @type {RestQuantities} */
         this.rest = gpu.rest;
-        /** CPU time of the last setVertices, ms */
+        /** CPU time of the last setVertices (vertex upload and the sort centres), ms */
         this.lastRemapMs = 0;
+        /** CPU time of the sort centres of the last setVertices (part of lastRemapMs), ms */
+        this.lastSortMs = 0;
+        /** false: splats stay sorted by their rest positions (cheaper; wrong once they turn) */
+        this.sortDeformed = fault !== 'rest-sort';
         this._components = components;
         this._modifier = { glsl: modifyChunkGLSL({ fault }), wgsl: modifyChunkWGSL({ fault }) };
         this._enabled = true;
+        const resource = gpu.resource;
+        /** @type {Float32Array} the engine's own rest centres (row order), restored by reset */
+        this._restCenters = new Float32Array(resource.centers.subarray(0, 3 * this.prim.count));
+        // the engine's bounds hold every splat's extent beyond its centre (2x its largest scale);
+        // keep that margin, grown with the deformed centres' extent
+        const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+        boundsInto(this._restCenters, lo, hi);
+        const box = resource.aabb, bmin = box.getMin(), bmax = box.getMax();
+        this._margin = Math.max(0, lo[0] - bmin.x, lo[1] - bmin.y, lo[2] - bmin.z, bmax.x - hi[0], bmax.y - hi[1], bmax.z - hi[2]);
+        this._restDiagonal = Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) || 1;
+        /** the anchors the sort centres need, in the engine's row order (read in sequence per frame) */
+        this._rows = rowOrderedMeansAnchors(this.prim, this.order);
+        /** @type {AnchorAnimation|null} the file's animation of this anchor mesh, or null */
+        this.animation = null;
+        /** @type {Float32Array|null} */
+        this._animated = null;
+        /** time (ms) the last set of centres was handed to the engine, 0 when it has been sorted */
+        this._centresInFlight = 0;
+        /** a pose arrived while centres were in flight: hand its centres over after the sort */
+        this._centresStale = false;
+        this._scene = scene;
+        this._onSorted = () => {
+            this._centresInFlight = 0;
+            if (this._centresStale) this._updateCenters(this._enabled ? this.gpu.current : null);
+        };
+        scene?.on('gsplat:sorted', this._onSorted);
         for (const c of components) {
+            checkComponent(c);
             c.setWorkBufferModifier(this._modifier);
             for (const [name, value] of gpu.parameters()) c.setParameter(name, value);
         }
@@ -277,6 +348,7 @@ export class AnchoredSplat {
             c.setWorkBufferModifier(this._enabled ? this._modifier : null);
             c.setParameter('gsvVertices', this.gpu.verticesTex);   // marks the instance dirty
         }
+        this._updateCenters(this._enabled ? this.gpu.current : null);
     }
 
     /** @param {ArrayLike<number>} vertices  (3V) current anchor vertices, splat-local space */
@@ -286,7 +358,62 @@ export class AnchoredSplat {
         // re-setting the texture marks the instance dirty: the work buffer is re-copied
         // through the remap on the next frame
         for (const c of this._components) c.setParameter('gsvVertices', this.gpu.verticesTex);
-        this.lastRemapMs = performance.now() - t0;
+        const t1 = performance.now();
+        if (this._enabled) this._updateCenters(this.gpu.current);
+        const t2 = performance.now();
+        this.lastSortMs = t2 - t1;
+        this.lastRemapMs = t2 - t0;
+    }
+
+    /**
+     * The engine's sort centres and bounds for the current pose (null: the rest pose as loaded).
+     * @param {ArrayLike<number>|null} vertices
+     * @private
+     */
+    _updateCenters(vertices) {
+        if (!this.sortDeformed) return;
+        if (this._scene && this._centresInFlight && performance.now() - this._centresInFlight < SORT_WAIT_MS) {
+            this._centresStale = true;
+            return;
+        }
+        this._centresStale = false;
+        const resource = this.gpu.resource;
+        const centers = /** @type {Float32Array} */ (resource.centers);
+        if (vertices) remapMeansInto(/** @type {AnchoredPrimitive} */ (this._rows), this.rest, vertices, centers);
+        else centers.set(this._restCenters);
+        const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+        boundsInto(centers.subarray(0, 3 * this.prim.count), lo, hi);
+        if (!(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2])) return;   // non-finite pose: keep the last bounds
+        const grow = Math.max(1, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / this._restDiagonal);
+        const m = this._margin * grow;
+        resource.aabb.setMinMax(new Vec3(lo[0] - m, lo[1] - m, lo[2] - m), new Vec3(hi[0] + m, hi[1] + m, hi[2] + m));
+        centersChanged(resource);
+        this._centresInFlight = performance.now();
+    }
+
+    /**
+     * True while the engine has not yet sorted the current pose (centres handed over and not
+     * reported sorted, or stale ones waiting): a picture taken now may show the previous order.
+     */
+    get sortPending() {
+        return this.sortDeformed && !!this._scene && (this._centresStale || this._centresInFlight > 0);
+    }
+
+    /**
+     * Pose the anchor mesh as the file's animation `index` plays it at `time` seconds (its skin
+     * and morph targets, spec §Animated anchor meshes; times outside the keys clamp), and remap.
+     * @param {number} index  animation index in the file
+     * @param {number} time  seconds
+     * @returns {Float32Array}  the anchor vertices used (splat-local space; reused by the next call)
+     */
+    setAnimationTime(index, time) {
+        if (!this.animation) {
+            throw new AnchorError('NO_ANIMATION', 'this anchored primitive has no animated anchor mesh (no skin or morph targets on its anchor node)');
+        }
+        this._animated ??= new Float32Array(3 * this.prim.anchorMesh.vertexCount);
+        this.animation.sample(index, time, this._animated);
+        this.setVertices(this._animated);
+        return this._animated;
     }
 
     /** @returns {Float32Array} copy of the current vertices */
@@ -303,7 +430,45 @@ export class AnchoredSplat {
             c.setWorkBufferModifier(null);
             for (const [name] of this.gpu.parameters()) c.deleteParameter(name);
         }
+        this._scene?.off('gsplat:sorted', this._onSorted);
+        this._scene = null;
+        this._updateCenters(null);
         this.gpu.destroy();
+    }
+}
+
+/**
+ * What remapMeansInto reads of a primitive, with the per-splat arrays permuted into the engine's
+ * row order (row r = file splat order[r]), so that the per-frame pass reads them in sequence.
+ * @param {AnchoredPrimitive} prim
+ * @param {Uint32Array} order
+ */
+function rowOrderedMeansAnchors(prim, order) {
+    const n = prim.count;
+    const faceIndex = new Uint32Array(n);
+    const barycentrics = new Float64Array(2 * n);
+    const offset = prim.normalOffset ? new Float64Array(n) : null;
+    for (let r = 0; r < n; ++r) {
+        const i = order[r];
+        faceIndex[r] = prim.faceIndex[i];
+        barycentrics[2 * r] = prim.barycentrics[2 * i];
+        barycentrics[2 * r + 1] = prim.barycentrics[2 * i + 1];
+        if (offset) offset[r] = /** @type {ArrayLike<number>} */ (prim.normalOffset)[i];
+    }
+    return { count: n, profile: prim.profile, anchorMesh: prim.anchorMesh, faceIndex, barycentrics, normalOffset: offset };
+}
+
+/**
+ * Bounds of 3N positions into lo/hi (non-finite values skipped).
+ * @param {ArrayLike<number>} p @param {number[]} lo @param {number[]} hi
+ */
+function boundsInto(p, lo, hi) {
+    for (let i = 0; i < p.length; i += 3) {
+        for (let k = 0; k < 3; ++k) {
+            const v = p[i + k];
+            if (v < lo[k]) lo[k] = v;
+            if (v > hi[k]) hi[k] = v;
+        }
     }
 }
 
@@ -336,7 +501,7 @@ function loadContainer(app, bytes, name) {
  * @param {AppBase} app
  * @param {string|Uint8Array|ArrayBuffer} source  URL or GLB bytes
  * @param {{name?: string, parent?: Entity|null, showAnchorMesh?: boolean, fault?: string|null}} [options]
- * @returns {Promise<{root: Entity, anchored: AnchoredSplat[], plain: Entity[], asset: Asset}>}
+ * @returns {Promise<{root: Entity, anchored: AnchoredSplat[], plain: Entity[], asset: Asset, animations: AnimationInfo[]}>}
  */
 export async function loadAnchoredAsset(app, source, options = {}) {
     const device = app.graphicsDevice;
@@ -352,7 +517,10 @@ export async function loadAnchoredAsset(app, source, options = {}) {
         bytes = source instanceof Uint8Array ? source : new Uint8Array(source);
     }
     name = name || 'asset.glb';
-    const { anchored: prims } = readAnchoredGlb(bytes, { name });   // refusals throw here
+    const { anchored: prims, json } = readAnchoredGlb(bytes, { name });   // refusals throw here
+    const doc = parseGltf(bytes);
+    const animations = prims.map((prim) => readAnchorAnimation(doc, prim, { name }));   // and here
+    checkEngine();
     const asset = await loadContainer(app, bytes, name);
     const container = /** @type {any} */ (asset.resource);
     const root = /** @type {Entity} */ (container.instantiateRenderEntity());
@@ -361,10 +529,10 @@ export async function loadAnchoredAsset(app, source, options = {}) {
     const anchoredAssetIds = new Set();
     /** @type {AnchoredSplat[]} */
     const anchored = [];
-    for (const prim of prims) {
-        const meshAssets = container._meshGSplats?.[prim.splatMesh];
-        const khrBefore = container.data?.gltf?.meshes?.[prim.splatMesh]?.primitives
-            ?.slice(0, prim.splatPrimitive).filter((/** @type {any} */ p) => p?.extensions?.KHR_gaussian_splatting).length ?? 0;
+    for (const [p, prim] of prims.entries()) {
+        const meshAssets = meshSplatAssets(container, prim.splatMesh);
+        const khrBefore = json.meshes[prim.splatMesh].primitives
+            .slice(0, prim.splatPrimitive).filter((/** @type {any} */ p) => p?.extensions?.KHR_gaussian_splatting).length;
         const gsplatAsset = meshAssets?.[khrBefore];
         if (!gsplatAsset?.resource) {
             throw new AnchorError('ENGINE_MISMATCH', `${name}: the engine created no splat resource for meshes[${prim.splatMesh}].primitives[${prim.splatPrimitive}]`);
@@ -378,9 +546,11 @@ export async function loadAnchoredAsset(app, source, options = {}) {
             : null;
         if (anchorEntity?.render && !options.showAnchorMesh) anchorEntity.render.enabled = false;
         const entity = components[0]?.entity ?? root;
-        anchored.push(new AnchoredSplat(gpu, entity, components, anchorEntity, options.fault ?? null));
+        const splat = new AnchoredSplat(gpu, entity, components, anchorEntity, options.fault ?? null, app.scene);
+        splat.animation = animations[p];
+        anchored.push(splat);
     }
     const plain = gsplatComponents.filter((c) => !anchoredAssetIds.has(c.asset)).map((c) => c.entity);
     if (parent) parent.addChild(root);
-    return { root, anchored, plain, asset };
+    return { root, anchored, plain, asset, animations: animations.find((a) => a)?.animations ?? [] };
 }

@@ -48,6 +48,7 @@ export class RemapProbe {
      * @returns {Promise<{means: Float32Array, rotations: Float32Array, scales: Float32Array}>}
      */
     async read() {
+        /** @type {any} the output streams exist: the constructor added them */
         const resource = this.gpu.resource;
         const n = this.gpu.prim.count;
         const order = this.gpu.order;

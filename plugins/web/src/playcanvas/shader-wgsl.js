@@ -257,16 +257,21 @@ fn gsvRemapSplat() -> GsvSplat {
  * @param {{fault?: string|null}} [options]
  */
 export function modifyChunkWGSL(options = {}) {
+    const fault = options.fault ?? null;
+    const node = fault !== 'node-transform';
+    const center = node ? '(uniform.matrix_model * vec4f(gsvLocal.mean, 1.0)).xyz' : 'gsvLocal.mean';
+    const quat = node ? 'vec4f(quatMul(half4(uniform.model_rotation), half4(gsvLocal.quat)))' : 'gsvLocal.quat';
+    const local = fault === 'scale-swizzle' ? 'gsvLocal.scale.yxz' : 'gsvLocal.scale';
     return `${remapChunkWGSL(options)}
 var<private> gsvLocal: GsvSplat;
 fn modifySplatCenter(center: ptr<function, vec3f>) {
     gsvLocal = gsvRemapSplat();
-    *center = (uniform.matrix_model * vec4f(gsvLocal.mean, 1.0)).xyz;
+    *center = ${center};
 }
 fn modifySplatRotationScale(originalCenter: vec3f, modifiedCenter: vec3f, rotation: ptr<function, vec4f>, scale: ptr<function, vec3f>) {
-    let q = vec4f(quatMul(half4(uniform.model_rotation), half4(gsvLocal.quat)));
+    let q = ${quat};
     *rotation = select(q, -q, q.w < 0.0);
-    *scale = uniform.model_scale * gsvLocal.scale;
+    *scale = ${node ? 'uniform.model_scale * ' : ''}${local};
 }
 fn modifySplatColor(center: vec3f, color: ptr<function, vec4f>) {
 }

@@ -66,8 +66,18 @@ export const FAULTS = {
      * affine law's third column on the wrong side, rigid frame mirrored) */
     'frame-axis': 'the local profile normal flipped (e2 x e1)',
     /** the GaMeS frame's b1 taken towards v2 instead of v1 */
-    'games-axis': 'the games frame b1 built from w (towards v2) instead of u'
+    'games-axis': 'the games frame b1 built from w (towards v2) instead of u',
+    // render-level faults: the remap itself is right, what the engine draws is not
+    /** the render wrapper hands the engine the scales in the wrong order (y, x, z) */
+    'scale-swizzle': 'the render wrapper packs the scales as (y, x, z)',
+    /** the render wrapper ignores the splat node's transform (splat-local output drawn as world) */
+    'node-transform': "the render wrapper ignores the splat node's transform",
+    /** splats keep the engine's sort by rest positions (the deformed centres are never sent) */
+    'rest-sort': 'splats sorted by their rest positions, not the deformed ones',
 };
+
+/** The faults that break only what is drawn (the conformance remap pass is unaffected). */
+export const RENDER_FAULTS = ['scale-swizzle', 'node-transform', 'rest-sort'];
 
 /**
  * The remap functions (one string, shared by the render and the conformance pass).
@@ -318,18 +328,23 @@ function cap(s) {
  * @returns {string}
  */
 export function modifyChunkGLSL(options = {}) {
+    const fault = options.fault ?? null;
+    const node = fault !== 'node-transform';
+    const center = node ? '(matrix_model * vec4(gsvMeanLocal, 1.0)).xyz' : 'gsvMeanLocal';
+    const quat = node ? 'quatMul(model_rotation, gsvQuatLocal)' : 'gsvQuatLocal';
+    const local = fault === 'scale-swizzle' ? 'gsvScaleLocal.yxz' : 'gsvScaleLocal';
     return `${remapChunkGLSL(options)}
 vec3 gsvMeanLocal;
 vec4 gsvQuatLocal;
 vec3 gsvScaleLocal;
 void modifySplatCenter(inout vec3 center) {
     gsvRemapSplat(gsvMeanLocal, gsvQuatLocal, gsvScaleLocal);
-    center = (matrix_model * vec4(gsvMeanLocal, 1.0)).xyz;
+    center = ${center};
 }
 void modifySplatRotationScale(vec3 originalCenter, vec3 modifiedCenter, inout vec4 rotation, inout vec3 scale) {
-    vec4 q = quatMul(model_rotation, gsvQuatLocal);
+    vec4 q = ${quat};
     rotation = q.w < 0.0 ? -q : q;
-    scale = model_scale * gsvScaleLocal;
+    scale = ${node ? 'model_scale * ' : ''}${local};
 }
 void modifySplatColor(vec3 center, inout vec4 color) {
 }
