@@ -18,6 +18,8 @@ import gsverse_format.remap_reference as remap_module
 from gsverse_format import frames as frames_module
 from gsverse_format.conformance import cases as case_defs
 from gsverse_format.conformance import invalid_cases as invalid_defs
+from gsverse_format.conformance import render_export
+from gsverse_format.conformance.render_export import copy_reference_pictures
 from gsverse_format.conformance.check import check_results, format_text, quat_to_matrix
 from gsverse_format.conformance.cli import main
 from gsverse_format.conformance.export import export_suite
@@ -52,7 +54,7 @@ def clib(tmp_path_factory):
 
 def _run(suite: Path, out: Path, factory) -> "Report":  # noqa: F821
     run_plugin(suite, out, factory)
-    return check_results(suite, out)
+    return check_results(suite, out, level="numbers")
 
 
 def _failed(report) -> set[str]:
@@ -71,7 +73,7 @@ def _tagged(manifests: dict, prefix: str) -> set[str]:
 
 def test_suite_covers_what_plugins_must_handle(suite, manifests):
     index = json.loads((suite / "suite.json").read_text())
-    assert index["version"] == 2 and (suite / "LAYOUT.md").is_file()
+    assert index["version"] == 3 and (suite / "LAYOUT.md").is_file()
     tags = {t for m in manifests.values() for t in m["tags"]}
     for needed in ["profile:local", "profile:games", "deformation:affine", "deformation:rigid",
                    "sh_degree:0", "sh_degree:1", "sh_degree:2", "sh_degree:3",
@@ -99,7 +101,7 @@ def test_suite_covers_what_plugins_must_handle(suite, manifests):
     assert set(face) == {1, 2, 3, 4, 5, 6}
     assert len(_ids(manifests, lambda m: m["kind"] == "invalid")) >= 15
     size = sum(p.stat().st_size for p in suite.rglob("*") if p.is_file())
-    assert size < 6e6, size
+    assert size < 7e6, size   # a few MB: the numbers level about 5.8, the render level 0.9
 
 
 def test_suite_covers_valid_encodings(suite, manifests):
@@ -238,13 +240,22 @@ def test_c_header_passes_every_case(suite, tmp_path, real, form, clib):
 def test_cli_check_text_json_and_exit_codes(suite, tmp_path, capsys, manifests):
     results = tmp_path / "res"
     run_plugin(suite, results, ReferencePlugin, info={"name": "reference"})
+    # numbers only: the render cases are missing, and the default level checks both
+    assert main(["check", str(suite), str(results)]) == 1
+    assert main(["check", str(suite), str(results), "--level", "numbers"]) == 0
+    capsys.readouterr()
+    n_render = copy_reference_pictures(suite, results)   # what 'dump' adds
+    assert n_render >= 7
     assert main(["check", str(suite), str(results)]) == 0
     out = capsys.readouterr().out
-    assert f"{len(manifests)} passed, 0 failed, 0 missing" in out and "harness: name=reference" in out
+    total = len(manifests) + n_render
+    assert f"{total} passed, 0 failed, 0 missing" in out and "harness: name=reference" in out
     assert main(["check", str(suite), str(results), "--format", "json"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert report["summary"] == {"total": len(manifests), "passed": len(manifests), "failed": 0,
-                                 "missing": 0}
+    assert report["summary"] == {"total": total, "passed": total, "failed": 0, "missing": 0,
+                                 "render": n_render}
+    turn = next(c for c in report["cases"] if c["id"] == "render-turn-180")
+    assert turn["kind"] == "render" and len(turn["frames"]) == 3
     case = next(c for c in report["cases"] if c["id"] == "local-affine-twist")
     assert case["status"] == "pass" and case["worst"]["quantity"] in ("mean", "covariance")
     assert {c["quantity"] for c in case["checks"]} == {"mean", "covariance", "opacity", "sh"}
@@ -282,7 +293,7 @@ def test_runner_flags_missing_wrong_nonfinite_and_refusals(suite, tmp_path, mani
     import shutil
 
     shutil.rmtree(results / "games-shake")
-    report = check_results(suite, results)
+    report = check_results(suite, results, level="numbers")
     by = {c.id: c for c in report.cases}
     assert "missing dump pose_001.cov" in by["local-rigid-bend"].message
     assert "has" in by["games-twist"].message and "expected" in by["games-twist"].message
@@ -292,7 +303,7 @@ def test_runner_flags_missing_wrong_nonfinite_and_refusals(suite, tmp_path, mani
     assert "accepted an invalid asset" in by["invalid-unknown-profile"].message
     assert by["games-shake"].status == "missing"
     assert report.summary == {"total": len(manifests), "passed": len(manifests) - 6,
-                              "failed": 5, "missing": 1}
+                              "failed": 5, "missing": 1, "render": 0}
     text = format_text(report)
     assert "FAIL    games-bend" in text and "MISSING games-shake" in text
 
@@ -300,12 +311,15 @@ def test_runner_flags_missing_wrong_nonfinite_and_refusals(suite, tmp_path, mani
 def test_cli_export_and_dump(tmp_path, capsys, monkeypatch):
     """The console entry points (export and dump on a reduced suite)."""
     remap_cases, invalid_cases = case_defs._per_face_cases, invalid_defs.invalid_cases
+    renders = render_export.render_cases
     monkeypatch.setattr(case_defs, "remap_cases", lambda: remap_cases()[:1])
     monkeypatch.setattr(invalid_defs, "invalid_cases", lambda: invalid_cases()[:2])
+    monkeypatch.setattr(render_export, "render_cases", lambda: renders()[:1])
     assert main(["export", str(tmp_path / "s")]) == 0
+    assert "1 render cases" in capsys.readouterr().out
     assert main(["dump", str(tmp_path / "s"), str(tmp_path / "r")]) == 0
     assert main(["check", str(tmp_path / "s"), str(tmp_path / "r")]) == 0
-    assert "3 passed" in capsys.readouterr().out
+    assert "4 passed" in capsys.readouterr().out
     assert main(["export", str(tmp_path / "s")]) == 0            # a previous suite is replaced
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "file.txt").write_text("x")

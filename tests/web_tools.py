@@ -52,16 +52,31 @@ def require_web_tools(*, browser: bool = False, packages: tuple[str, ...] = ()) 
     pytest.skip(reason)
 
 
+def time_scale() -> float:
+    """How much longer than on an idle machine the browser runs may take here: the one-minute
+    load average per CPU core (``GSVERSE_TIME_SCALE`` when set), at least 1, at most 8. The
+    time limits of the Node and browser runs are multiplied by it, and it is passed on to them,
+    so a machine busy with other work is slower, not failing."""
+    value = os.environ.get("GSVERSE_TIME_SCALE")
+    try:
+        scale = float(value) if value else os.getloadavg()[0] / max(1, os.cpu_count() or 1)
+    except (ValueError, OSError):
+        scale = 1.0
+    return min(8.0, max(1.0, scale))
+
+
 def run_node(args: list[str | os.PathLike], *, cwd: Path = WEB, timeout: float = 600.0,
              env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    """Run ``node ARGS...`` and return the finished process (output captured as text)."""
-    full_env = dict(os.environ)
+    """Run ``node ARGS...`` and return the finished process (output captured as text);
+    ``timeout`` is for an idle machine and grows with :func:`time_scale`."""
+    scale = time_scale()
+    full_env = dict(os.environ, GSVERSE_TIME_SCALE=f"{scale:.2f}")
     browser = chromium()
     if browser is not None:  # the one executable every browser run of the tests uses
         full_env["GSVERSE_CHROMIUM"] = full_env["CHROMIUM"] = browser
     full_env.update(env or {})
     return subprocess.run(["node", *map(str, args)], cwd=cwd, env=full_env, capture_output=True,
-                          text=True, timeout=timeout, check=False)
+                          text=True, timeout=timeout * scale, check=False)
 
 
 def artifacts_dir(name: str) -> Path:

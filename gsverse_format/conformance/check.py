@@ -7,7 +7,12 @@ For each case of the suite in ``DIR`` the runner reads ``RESULTS/<id>/`` (layout
   covariances after every pose, and opacity and SH after the last pose (pass-through), each
   against the tolerance in the case manifest. Covariances are compared, never rotation/scale
   pairs (which are not unique): dumps of rotation + scale are turned into R diag(s)² Rᵀ first;
-* invalid cases — that the plugin refused the asset (a ``refused`` file).
+* invalid cases — that the plugin refused the asset (a ``refused`` file);
+* render cases (the render level, :mod:`.render_check`) — the engine's picture of every frame
+  against the reference picture: PSNR over the covered pixels and coverage IoU.
+
+``level`` picks what is checked: ``numbers`` (remap and invalid cases), ``render`` (render
+cases) or ``all``.
 
 A case passes when every value is finite and within tolerance. The report names, per case,
 the worst error relative to its tolerance and where it is (dump, pose, splat).
@@ -23,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UsageError
+from .render_check import FrameScore, check_render_case
 
 __all__ = ["Check", "CaseResult", "Report", "check_results", "format_text", "quat_to_matrix"]
 
@@ -49,6 +55,8 @@ class CaseResult:
     message: str = ""
     worst: Check | None = None
     checks: list[Check] = field(default_factory=list)
+    #: render cases: the score of every frame
+    frames: list[FrameScore] = field(default_factory=list)
 
 
 @dataclass
@@ -59,12 +67,15 @@ class Report:
     harness: dict | None
     cases: list[CaseResult]
 
+    level: str = "all"
+
     @property
     def summary(self) -> dict[str, int]:
         return {"total": len(self.cases),
                 "passed": sum(c.status == "pass" for c in self.cases),
                 "failed": sum(c.status == "fail" for c in self.cases),
-                "missing": sum(c.status == "missing" for c in self.cases)}
+                "missing": sum(c.status == "missing" for c in self.cases),
+                "render": sum(c.kind == "render" for c in self.cases)}
 
     @property
     def ok(self) -> bool:
@@ -81,7 +92,7 @@ class Report:
             return value
 
         return clean({"suite": self.suite, "results": self.results, "version": self.version,
-                      "harness": self.harness, "summary": self.summary,
+                      "level": self.level, "harness": self.harness, "summary": self.summary,
                       "cases": [asdict(c) for c in self.cases]})
 
 
@@ -268,8 +279,20 @@ def _check_invalid(manifest: dict, folder: Path) -> CaseResult:
                       f"({manifest['rule']}" + (f"; validator code {code})" if code else ")"))
 
 
-def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike) -> Report:
-    """Check every case of the suite in ``suite_dir`` against the dumps in ``results_dir``."""
+def _check_render(case_dir: Path, manifest: dict, folder: Path) -> CaseResult:
+    status, message, scores = check_render_case(case_dir, manifest, folder)
+    return CaseResult(manifest["id"], "render", status, message, frames=scores)
+
+
+LEVELS = ("numbers", "render", "all")
+
+
+def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike, *,
+                  level: str = "all") -> Report:
+    """Check the cases of the suite in ``suite_dir`` against the dumps in ``results_dir``:
+    ``level`` ``numbers`` (remap and invalid cases), ``render`` (render cases) or ``all``."""
+    if level not in LEVELS:
+        raise UsageError(f"level must be one of {', '.join(LEVELS)}, got {level!r}")
     root = Path(suite_dir)
     index_path = root / "suite.json"
     if not index_path.is_file():
@@ -286,7 +309,9 @@ def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike) 
         except ValueError:
             harness = {"error": "harness.json is not valid JSON"}
     out = []
-    for entry in index["cases"]:
+    entries = (index["cases"] if level != "render" else []) + \
+        (index.get("render_cases", []) if level != "numbers" else [])
+    for entry in entries:
         case_dir = root / entry["path"]
         manifest = json.loads((case_dir / "case.json").read_text(encoding="utf-8"))
         folder = results / manifest["id"]
@@ -295,9 +320,11 @@ def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike) 
                                   f"no results folder {manifest['id']}/"))
         elif manifest["kind"] == "invalid":
             out.append(_check_invalid(manifest, folder))
+        elif manifest["kind"] == "render":
+            out.append(_check_render(case_dir, manifest, folder))
         else:
             out.append(_check_remap(case_dir, manifest, folder))
-    return Report(str(root), str(results), index.get("version", 0), harness, out)
+    return Report(str(root), str(results), index.get("version", 0), harness, out, level)
 
 
 def format_text(report: Report, *, failures_only: bool = False) -> str:
@@ -310,7 +337,10 @@ def format_text(report: Report, *, failures_only: bool = False) -> str:
     width = max((len(c.id) for c in shown), default=10)
     for c in shown:
         status = c.status.upper()
-        if c.kind == "invalid" or c.worst is None:
+        if c.kind == "render" and c.status == "pass" and c.frames:
+            detail = (f"worst frame: PSNR {min(f.psnr_db for f in c.frames):.1f} dB, coverage "
+                      f"IoU {min(f.iou for f in c.frames):.3f} ({len(c.frames)} frames)")
+        elif c.kind == "invalid" or c.worst is None:
             detail = c.message
         else:
             w = c.worst
@@ -321,5 +351,5 @@ def format_text(report: Report, *, failures_only: bool = False) -> str:
         lines.append(f"{status:7} {c.id:{width}}  {detail}")
     s = report.summary
     lines.append(f"{s['passed']} passed, {s['failed']} failed, {s['missing']} missing, "
-                 f"{s['total']} cases")
+                 f"{s['total']} cases (level {report.level}: {s['render']} render cases)")
     return "\n".join(lines)

@@ -10,6 +10,7 @@ IEEE float32, ``.f64`` IEEE float64)::
     DIR/cases/<id>/poses/pose_NNN.f32   (V, 3) anchor-mesh vertex positions of pose NNN
     DIR/cases/<id>/expected/...         float64 reference outputs (see LAYOUT.md)
     DIR/cases/<id>/skinned.glb          skinned cases: the animation the poses come from
+    DIR/cases/<id>/reference/*.png      render cases: the reference pictures (.render_export)
 
 Expected outputs come from the float64 reference (:mod:`gsverse_format.remap_reference`), evaluated on
 exactly the values stored in the files: the anchors as read back from ``asset.glb``
@@ -38,10 +39,11 @@ from . import cases as case_defs
 from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
+from .render_export import export_render_cases
 
 __all__ = ["export_suite", "SUITE_VERSION", "F32_UNIT_ROUNDOFF", "cov6", "LAYOUT_TEXT"]
 
-SUITE_VERSION = 2  # suite format 2: spec v1.1 rules and tolerances
+SUITE_VERSION = 3  # suite format 3: spec v1.1/1.2 rules and tolerances, and the render level
 #: u = 2⁻²⁴, the float32 unit roundoff: tolerances are stated in multiples of it.
 F32_UNIT_ROUNDOFF = 2.0 ** -24
 #: ‖Σ − Σ_ref‖_F is measured against max(‖Σ_ref‖_F, COV_FLOOR · ‖Σ_rest‖_F).
@@ -423,6 +425,13 @@ Coordinates are the asset's local (glTF) space: metres, +Y up, right-handed.
     cases/<id>/skinned.glb             skinned cases only: the animation sampled into the poses
     cases/<id>/expected/...            float64 reference (read by the runner, not by you)
 
+Render cases (listed under `render_cases` in suite.json, the render level):
+
+    cases/<id>/case.json               manifest (kind "render"): frames (deformation, camera), thresholds
+    cases/<id>/asset.glb               asset: anchored (and plain) splat primitives
+    cases/<id>/frames/frame_NNN.f32    (V, 3) anchor vertices of frame NNN (deformation kind "vertices")
+    cases/<id>/reference/frame_NNN.png the reference picture of frame NNN
+
 ## Dumps (written by your harness, read by `gsverse-conformance check SUITE RESULTS`)
 
 For every case, a folder `RESULTS/<id>/`. Splats in file order (element i of the
@@ -444,6 +453,10 @@ Remap cases:
 Invalid cases (and any case your importer rejects):
 
     refused          a text file: your importer's error message
+
+Render cases: your engine's picture of every frame, same size as the reference, over black:
+
+    frame_NNN.png    8-bit RGB (or RGBA), sRGB-encoded display colours
 
 Any case: `error`, a text file, when the harness itself failed on the case (it fails).
 
@@ -485,6 +498,7 @@ def export_suite(directory: str | os.PathLike) -> dict:
             entries.append({"id": invalid.id, "kind": "invalid", "tags": manifest["tags"],
                             "path": f"cases/{invalid.id}"})
         shutil.rmtree(scratch)
+        render_entries = export_render_cases(tmp)
         suite = {
             "format": "gsverse-conformance-suite",
             "version": SUITE_VERSION,
@@ -493,8 +507,10 @@ def export_suite(directory: str | os.PathLike) -> dict:
             "layout": "LAYOUT.md",
             "guide": "spec/conformance.md of gsverse-format",
             "counts": {"remap": sum(e["kind"] == "remap" for e in entries),
-                       "invalid": sum(e["kind"] == "invalid" for e in entries)},
+                       "invalid": sum(e["kind"] == "invalid" for e in entries),
+                       "render": len(render_entries)},
             "cases": entries,
+            "render_cases": render_entries,
         }
         _write(tmp / "suite.json", json.dumps(suite, indent=1).encode("utf-8"))
         _write(tmp / "LAYOUT.md", LAYOUT_TEXT.encode("utf-8"))
