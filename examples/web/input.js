@@ -1,11 +1,12 @@
 // Mouse and touch input of the demo: an orbit camera and grab-and-pull of the soft bodies.
 //
-// Left button on the object: grab the nearest anchor-mesh vertex (and its neighbourhood) and pull
-// it in the plane facing the camera; the opposite end of the body is held where it is, so the
-// pull stretches it (hold Shift to drag the whole body instead). Left button elsewhere, or right
-// or middle button: orbit. Wheel: zoom.
+// Left button on the object: grab the nearest physics vertex (and its neighbourhood) and pull it
+// in the plane facing the camera; the opposite end of the body is held where it is, so the pull
+// stretches it, up to a limit (controls.js, Drag); hold Shift to drag the whole body instead.
+// Left button elsewhere, or right or middle button: orbit. Wheel: zoom.
 
 import * as pc from 'playcanvas';
+import { Drag } from './controls.js';
 
 export class OrbitCamera {
     /** @param {pc.Entity} camera */
@@ -70,7 +71,7 @@ export class Grabber {
         this.current = current;
         this.hooks = hooks;
         this.enabled = true;
-        /** @type {null | {soft: import('./physics.js').SoftBodyMesh, grab: number[], start: Float32Array, origin: pc.Vec3, normal: pc.Vec3}} */
+        /** @type {null | {drag: Drag, origin: pc.Vec3, normal: pc.Vec3}} */
         this.grab = null;
         /** @type {null | {x: number, y: number}} */
         this.orbiting = null;
@@ -115,38 +116,51 @@ export class Grabber {
     /** @param {PointerEvent} e */
     down(e) {
         this.canvas.setPointerCapture(e.pointerId);
-        const hit = e.button === 0 && this.enabled ? this.pick(e.offsetX, e.offsetY) : null;
-        if (!hit) {
+        if (!(e.button === 0 && this.enabled && this.grabAt(e.offsetX, e.offsetY, e.shiftKey))) {
             this.orbiting = { x: e.clientX, y: e.clientY };
-            return;
         }
+    }
+
+    /**
+     * Grab the body under a screen point (pixels). Returns whether something was grabbed.
+     * @param {number} x @param {number} y @param {boolean} [moveWhole] drag the whole body
+     */
+    grabAt(x, y, moveWhole = false) {
+        const hit = this.pick(x, y);
+        if (!hit) return false;
         this.hooks.onGrab?.();
         const { soft, index, positions: p } = hit;
-        const rb = soft.bounds();
-        const radius = 0.15 * Math.hypot(...rb.size);
-        const near = (/** @type {number} */ c) => {
-            const out = [];
-            for (let i = 0; i < soft.count; i++) {
-                if (Math.hypot(p[3 * i] - p[3 * c], p[3 * i + 1] - p[3 * c + 1], p[3 * i + 2] - p[3 * c + 2]) <= radius) out.push(i);
-            }
-            return out;
-        };
-        const grab = near(index);
-        /** @type {Map<number, number[]>} */
-        const pins = new Map();
-        for (const i of grab) pins.set(i, [p[3 * i], p[3 * i + 1], p[3 * i + 2]]);
-        if (!e.shiftKey) {
-            // hold the far end: the vertex farthest from the grabbed one, and its neighbourhood
-            let far = 0, farD = -1;
-            for (let i = 0; i < soft.count; i++) {
-                const d = (p[3 * i] - p[3 * index]) ** 2 + (p[3 * i + 1] - p[3 * index + 1]) ** 2 + (p[3 * i + 2] - p[3 * index + 2]) ** 2;
-                if (d > farD) { farD = d; far = i; }
-            }
-            for (const i of near(far)) if (!pins.has(i)) pins.set(i, [p[3 * i], p[3 * i + 1], p[3 * i + 2]]);
-        }
-        soft.setPins(pins);
+        const drag = new Drag(soft, index, { moveWhole });
         const origin = new pc.Vec3(p[3 * index], p[3 * index + 1], p[3 * index + 2]);
-        this.grab = { soft, grab, start: new Float32Array(p), origin, normal: this.camera.forward.clone() };
+        this.grab = { drag, origin, normal: this.camera.forward.clone() };
+        return true;
+    }
+
+    /**
+     * Pull the grabbed point to a screen point (pixels), in the plane facing the camera.
+     * @param {number} x @param {number} y
+     */
+    dragTo(x, y) {
+        const g = this.grab;
+        if (!g) return;
+        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
+        const a = cam.screenToWorld(x, y, cam.nearClip);
+        const b = cam.screenToWorld(x, y, cam.farClip);
+        const dir = b.clone().sub(a);
+        const denom = dir.dot(g.normal);
+        if (Math.abs(denom) < 1e-9) return;
+        const t = g.origin.clone().sub(a).dot(g.normal) / denom;
+        const hit = a.add(dir.mulScalar(t));
+        const d = hit.sub(g.origin);
+        g.drag.move([d.x, d.y, d.z]);
+    }
+
+    /** Let go of the grabbed body. */
+    release() {
+        if (this.grab) {
+            this.grab.drag.release();
+            this.grab = null;
+        }
     }
 
     /** @param {PointerEvent} e */
@@ -156,27 +170,13 @@ export class Grabber {
             this.orbiting = { x: e.clientX, y: e.clientY };
             return;
         }
-        const g = this.grab;
-        if (!g) return;
-        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
-        const a = cam.screenToWorld(e.offsetX, e.offsetY, cam.nearClip);
-        const b = cam.screenToWorld(e.offsetX, e.offsetY, cam.farClip);
-        const dir = b.clone().sub(a);
-        const denom = dir.dot(g.normal);
-        if (Math.abs(denom) < 1e-9) return;
-        const t = g.origin.clone().sub(a).dot(g.normal) / denom;
-        const hit = a.add(dir.mulScalar(t));
-        const d = hit.sub(g.origin);
-        for (const i of g.grab) g.soft.setTarget(i, [g.start[3 * i] + d.x, g.start[3 * i + 1] + d.y, g.start[3 * i + 2] + d.z]);
+        this.dragTo(e.offsetX, e.offsetY);
     }
 
     /** @param {PointerEvent} e */
     up(e) {
         if (this.canvas.hasPointerCapture(e.pointerId)) this.canvas.releasePointerCapture(e.pointerId);
         this.orbiting = null;
-        if (this.grab) {
-            this.grab.soft.setPins(null);
-            this.grab = null;
-        }
+        this.release();
     }
 }

@@ -4,19 +4,34 @@
 //
 // URL parameters: ?asset=URL (default: the asset the server names in /config.json),
 // ?test (fixed front camera, plain background, no panel or ground, physics paused: for
-// deterministic screenshots).
+// deterministic screenshots), ?physics=surface and ?budget=N (the physics mesh, see physmesh.js).
 
 import * as pc from 'playcanvas';
 import initJolt from 'jolt-physics';
-import { PhysicsWorld, axisIndex } from './physics.js';
+import { RemapProbe } from '@gsverse/web/playcanvas/probe.js';
+import { PhysicsWorld, axisIndex, DEFAULT_BUDGET } from './physics.js';
 import { DemoAsset } from './scene.js';
 import { OrbitCamera, Grabber } from './input.js';
 import { RemapTimer } from './gputimer.js';
+import { SliderDrive, Shake, CAP } from './controls.js';
+import { FrameWatch, physicsLabel, statsText } from './report.js';
+import { AnimationPlayer, bindAnimationUi, showAnimationUi } from './player.js';
 
 const params = new URLSearchParams(location.search);
 const TEST = params.has('test');
 const DT = 1 / 60;
-const CAP = 0.12;
+/** At most this many physics steps per frame, and no new step once a frame's steps took this
+ * long (ms): on a slow machine the simulation runs slower than real time instead of stalling the
+ * page. */
+const MAX_STEPS = 6;
+const FRAME_PHYSICS_MS = 12;
+/** Soft-body options from the URL: ?physics=surface (the anchor mesh itself, within the budget)
+ * or lattice (default); ?budget=N physics vertices. */
+/** @type {import('./physics.js').SoftBodyOptions} */
+const PHYSICS = {
+    kind: params.get('physics') === 'surface' ? 'surface' : 'lattice',
+    budget: Number(params.get('budget')) > 0 ? Number(params.get('budget')) : DEFAULT_BUDGET,
+};
 
 /** @param {string} id */
 const $ = (id) => /** @type {HTMLElement} */ (document.getElementById(id));
@@ -44,12 +59,14 @@ function frames(n = 2) {
 /** @type {DemoAsset|null} */ let current = null;
 /** @type {OrbitCamera|null} */ let orbit = null;
 /** @type {RemapTimer|null} */ let timer = null;
+/** @type {Grabber|null} */ let grabber = null;
 /** @type {any} */ let ground = null;
 let paused = TEST;
 let dirty = true;
 let accumulator = 0;
 let stepMs = 0;
-/** @type {null | {t: number, duration: number, amplitude: number}} */
+const sliders = new SliderDrive({ cap: CAP });
+/** @type {Shake|null} */
 let shake = null;
 /** the camera follows the body while it falls and rolls (after drop) */
 let follow = false;
@@ -58,6 +75,15 @@ let software = false;
 let assetLabel = 'no asset';
 
 const state = { axis: /** @type {0|1|2} */ (1), stretch: 1, twist: 0 };
+
+/** What the page saw since the last `monitor()` call. */
+const watch = new FrameWatch();
+/** The asset's own animations (player.js). */
+const player = new AnimationPlayer();
+const animUi = () => ({
+    row: $('anim-row'), select: /** @type {HTMLSelectElement} */ ($('anim')),
+    play: /** @type {HTMLButtonElement} */ ($('anim-play')), time: input('anim-time'), label: $('anim-val'),
+});
 
 /** @param {unknown} err */
 function showError(err) {
@@ -77,15 +103,26 @@ function hideError() {
     $('error').textContent = '';
 }
 
+/** The soft bodies of the current asset. */
+const softs = () => (current ? current.bodies.map((b) => b.soft) : []);
+
+/** Put the slider elements (and labels) at the given values. @param {number} stretch @param {number} twist */
+function showSliders(stretch, twist) {
+    state.stretch = stretch;
+    state.twist = twist;
+    input('stretch').value = String(stretch);
+    input('twist').value = String(twist);
+    updateLabels();
+}
+
 /** Bring every soft body back to rest, free all pins, reset the sliders. */
 function resetAll() {
+    shake?.stop();
     shake = null;
+    grabber?.release();
     follow = false;
-    state.stretch = 1;
-    state.twist = 0;
-    input('stretch').value = '1';
-    input('twist').value = '0';
-    updateLabels();
+    sliders.release();
+    showSliders(1, 0);
     current?.reset();
     if (current && orbit && current.bodies.length) {
         const c = current.restBounds().center;
@@ -100,55 +137,29 @@ function updateLabels() {
     $('twist-val').textContent = `${Math.round(state.twist)}°`;
 }
 
-/** Hold both end caps at the slider pose (stretch, then twist) and let the body follow. */
+/** The sliders moved: hold both end caps and move them towards the sliders' pose. */
 function holdSliders() {
     if (!current) return;
+    shake?.stop();
     shake = null;
-    for (const b of current.bodies) {
-        const s = b.soft;
-        const st = s.stretchMap(state.axis, state.stretch);
-        const tw = s.twistMap(state.axis, state.twist, CAP);
-        s.hold(state.axis, (p) => st(tw(p)), CAP);
-    }
+    grabber?.release();
+    sliders.set(state.axis, state.stretch, state.twist);
 }
 
+/** Let go of everything held (sliders, shake, drag); the sliders go back to rest. */
 function releaseAll() {
+    shake?.stop();
     shake = null;
-    for (const b of current?.bodies ?? []) b.soft.setPins(null);
+    grabber?.release();
+    sliders.release();
+    for (const s of softs()) s.setPins(null);
+    showSliders(1, 0);
 }
 
 function startShake() {
     if (!current) return;
     resetAll();
-    shake = { t: 0, duration: 2, amplitude: 0.12 * Math.max(...current.restBounds().size) };
-    for (const b of current.bodies) {
-        /** @type {Map<number, number[]>} */
-        const pins = new Map();
-        for (const i of b.soft.endCap(state.axis, -1, 0.2)) pins.set(i, [b.soft.rest[3 * i], b.soft.rest[3 * i + 1], b.soft.rest[3 * i + 2]]);
-        b.soft.setPins(pins);
-    }
-}
-
-/** @param {number} dt */
-function advanceShake(dt) {
-    if (!shake || !current) return;
-    shake.t += dt;
-    if (shake.t >= shake.duration) {
-        releaseAll();
-        return;
-    }
-    const side = state.axis === 0 ? 2 : 0;
-    const amp = shake.amplitude * Math.sin(2 * Math.PI * 3 * shake.t) * Math.min(1, 4 * (shake.duration - shake.t));
-    for (const b of current.bodies) {
-        const s = b.soft;
-        if (!s.targets) continue;
-        for (let i = 0; i < s.count; i++) {
-            if (Number.isNaN(s.targets[3 * i])) continue;
-            const t = [s.rest[3 * i], s.rest[3 * i + 1], s.rest[3 * i + 2]];
-            t[side] += amp;
-            s.targets.set(t, 3 * i);
-        }
-    }
+    shake = new Shake(softs(), state.axis);
 }
 
 function drop() {
@@ -163,6 +174,15 @@ function drop() {
     paused = false;
     follow = true;
     $('pause').textContent = 'pause';
+}
+
+/** One fixed physics step of the current asset, with whatever holds it. */
+function physicsStep() {
+    if (!current) return;
+    sliders.step(DT, softs());
+    if (shake && !shake.step(DT)) shake = null;
+    current.step(DT);
+    watch.steps++;
 }
 
 /** Place the camera and the ground for the current asset. */
@@ -196,21 +216,35 @@ function frameAsset() {
 async function open(source, name) {
     if (!app || !world) throw new Error('the demo is not started');
     hideError();
+    const splatFile = /^(.*)\.(ply|splat|ksplat|spz|sog|json)$/i.exec(name);
+    if (splatFile) {
+        const err = new Error(`${name} holds splats, not an anchored asset: convert it first with `
+            + `gsverse-convert ${name} ${splatFile[1]}.glb (add --mesh MESH.obj to anchor the splats to your own mesh), then open the .glb`);
+        showError(err);
+        throw err;
+    }
     $('asset').textContent = `loading ${name}…`;
     let next;
     try {
-        next = await DemoAsset.load(app, world, source, name);
+        next = await DemoAsset.load(app, world, source, name, PHYSICS);
     } catch (err) {
         $('asset').textContent = assetLabel;
         showError(err);
         throw err;
     }
+    timer?.clear();
+    grabber?.release();
+    shake?.stop();
+    shake = null;
     current?.destroy();
     current = next;
+    player.setAnimations(current.animations);
+    showAnimationUi(player, animUi());
     resetAll();
     frameAsset();
     const c = current.counts();
-    const meshes = current.bodies.map((b) => `${b.soft.anchorCount} vertices (${b.soft.count} welded), ${b.soft.faces.length / 3} faces${b.soft.closed ? '' : ', open'}`);
+    const meshes = current.bodies.map((b) => `anchor mesh: ${b.soft.anchorCount} vertices, ${b.splat.prim.anchorMesh.indices.length / 3} faces; `
+        + `physics: ${physicsLabel(b.soft)}`);
     assetLabel = `${name}: ${c.anchored} anchored splats${c.plain ? `, ${c.plain} plain` : ''}`;
     $('asset').textContent = assetLabel;
     $('asset').title = meshes.join('\n');
@@ -224,29 +258,31 @@ function info() {
     return {
         asset: current?.name ?? null,
         splats: current?.counts() ?? null,
-        bodies: current?.bodies.map((b) => ({ vertices: b.soft.anchorCount, welded: b.soft.count, faces: b.soft.faces.length / 3, closed: b.soft.closed })) ?? [],
+        bodies: current?.bodies.map((b) => ({
+            vertices: b.soft.anchorCount, faces: b.splat.prim.anchorMesh.indices.length / 3,
+            physics: b.soft.kind, physicsVertices: b.soft.simCount, grid: b.soft.physics.grid?.cells ?? null, why: b.soft.physics.reason,
+            guardTrips: b.soft.guardTrips,
+        })) ?? [],
         axis: 'xyz'[state.axis],
         backend,
+        software,
         gpuTimer: !!timer?.available,
-        remapGpuMs: timer?.ms ?? null,
-        remapCpuMs: current?.remapCpuMs() ?? null,
+        remapGpuMs: timer?.remapMs ?? null,
+        workBufferGpuMs: timer?.workBufferMs ?? null,
+        setVerticesCpuMs: current?.remapCpuMs() ?? null,
+        physicsStepMs: stepMs,
         paused,
     };
 }
 
+/** The stats panel's text. */
+function stats() {
+    if (!current) return '';
+    return statsText({ asset: current, timer, software, backend, stepMs, fps: app?.stats?.frame?.fps ?? 0, paused });
+}
+
 function updateStats() {
-    if (!current) return;
-    const cpu = `${current.remapCpuMs().toFixed(3)} ms CPU (vertex upload + pass scheduling)`;
-    let remap;
-    if (timer?.available && timer.ms !== null) {
-        remap = `remap pass: ${timer.ms.toFixed(3)} ms GPU timer query (work-buffer pass)` +
-            (software ? `\n  software rasterizer: the timer counts CPU emulation, not GPU time` : '') + `\n  vertex update: ${cpu}`;
-    } else {
-        remap = `remap: ${cpu}; ${timer?.available ? 'waiting for a GPU timing' : 'no GPU timer queries on this device'}`;
-    }
-    const fps = app?.stats?.frame?.fps ?? 0;
-    const shortBackend = software ? 'WebGL2 · software rasterizer (SwiftShader)' : backend;
-    $('stats').textContent = `${remap}\nphysics: ${stepMs.toFixed(2)} ms/step (Jolt soft body)\n${fps} fps · ${shortBackend}${paused ? ' · paused' : ''}`;
+    if (current) $('stats').textContent = stats();
 }
 
 // ---- start-up -------------------------------------------------------------------------------
@@ -286,9 +322,16 @@ async function start() {
         app.root.addChild(ground);
     }
     orbit = new OrbitCamera(camera);
-    timer = new RemapTimer(app);
-    const grabber = new Grabber(canvas, camera, orbit, () => current, {
-        onGrab: () => { shake = null; paused = false; $('pause').textContent = 'pause'; },
+    timer = new RemapTimer(app, (gpu) => new RemapProbe(gpu));
+    grabber = new Grabber(canvas, camera, orbit, () => current, {
+        onGrab: () => {
+            shake?.stop();
+            shake = null;
+            sliders.release();
+            showSliders(1, 0);
+            paused = false;
+            $('pause').textContent = 'pause';
+        },
     });
     grabber.enabled = !TEST;
 
@@ -297,15 +340,16 @@ async function start() {
 
     const wireColor = new pc.Color(0.3, 1, 0.55, 1);
     app.on('update', (/** @type {number} */ dt) => {
-        timer?.update();
+        // the extent the previous frame showed
+        watch.frame(current && current.bodies.length ? current.syncedBounds().size : null);
+        timer?.update(current ? current.bodies.map((b) => b.splat) : []);
         if (!current) return;
         if (!paused) {
             accumulator += Math.min(dt, 0.1);
             let n = 0;
             const t0 = performance.now();
-            while (accumulator >= DT && n < 4) {
-                advanceShake(DT);
-                current.step(DT);
+            while (accumulator >= DT && n < MAX_STEPS && (n === 0 || performance.now() - t0 < FRAME_PHYSICS_MS)) {
+                physicsStep();
                 accumulator -= DT;
                 n++;
             }
@@ -313,20 +357,26 @@ async function start() {
                 stepMs = (performance.now() - t0) / n;
                 dirty = true;
             }
-            if (n === 4) accumulator = 0;
+            if (accumulator >= DT) accumulator = 0;     // behind: slow down rather than catch up
+        }
+        if (player.advance(dt)) {
+            dirty = true;
+            showAnimationUi(player, animUi());
         }
         if (dirty) {
-            current.sync();
+            // the plugin hands the deformed sort centres to the engine as fast as it sorts them
+            current.sync(player.pose());
             dirty = false;
         }
-        if (follow && !grabber.grab && orbit && current.bodies.length) {
-            const c = current.bounds().center, t = orbit.target, k = Math.min(1, 3 * dt);
+        if (follow && !grabber?.grab && orbit && current.bodies.length) {
+            const c = current.syncedBounds().center, t = orbit.target, k = Math.min(1, 3 * dt);
             t.set(t.x + k * (c[0] - t.x), t.y + k * (c[1] - t.y), t.z + k * (c[2] - t.z));
             orbit.apply();
         }
         if (input('wire').checked) current.drawWireframe(wireColor);
     });
     setInterval(updateStats, 250);
+    app.scene.on('gsplat:sorted', () => { watch.sorts++; });   // the engine's sorts (deformed poses and camera moves)
     app.start();
     bindUi();
 
@@ -351,14 +401,7 @@ function bindUi() {
         paused = false;
         holdSliders();
     });
-    $('release').addEventListener('click', () => {
-        releaseAll();
-        state.stretch = 1;
-        state.twist = 0;
-        input('stretch').value = '1';
-        input('twist').value = '0';
-        updateLabels();
-    });
+    $('release').addEventListener('click', releaseAll);
     $('shake').addEventListener('click', () => { paused = false; startShake(); });
     $('drop-btn').addEventListener('click', drop);
     $('reset').addEventListener('click', resetAll);
@@ -367,6 +410,7 @@ function bindUi() {
         $('pause').textContent = paused ? 'resume' : 'pause';
     });
     $('error').addEventListener('click', hideError);
+    bindAnimationUi(player, animUi(), () => { dirty = true; });
     const overlay = $('drop');
     window.addEventListener('dragover', (e) => { e.preventDefault(); overlay.classList.add('show'); });
     window.addEventListener('dragleave', (e) => { if (!e.relatedTarget) overlay.classList.remove('show'); });
@@ -387,14 +431,29 @@ async function scripted(/** @type {(b: import('./scene.js').Body) => void} */ fn
     await ready;
     if (!current) throw new Error('no asset loaded');
     paused = true;
+    shake?.stop();
     shake = null;
+    grabber?.release();
+    sliders.release();
     for (const b of current.bodies) fn(b);
-    current.sync();
+    current.sync(player.pose());
     dirty = false;
     await frames(4);
     await new Promise((r) => setTimeout(r, 100));
     await frames(2);
     return api.extent();
+}
+
+/**
+ * Set a slider's value and fire its input event, as a person moving it does.
+ * @param {'stretch'|'twist'} id @param {number} value
+ */
+async function moveSlider(id, value) {
+    await ready;
+    const el = input(id);
+    el.value = String(value);
+    el.dispatchEvent(new Event('input', { bubbles: true }));
+    return { stretch: state.stretch, twist: state.twist };
 }
 
 const api = {
@@ -404,13 +463,13 @@ const api = {
      * apart, the rest settled by the solver).
      * @param {string|number} axis @param {number} factor
      */
-    pull: (axis, factor) => {
+    pull: async (axis, factor) => {
+        const size = await scripted((b) => b.soft.pull(axisIndex(axis), factor, { cap: CAP }));
         if (axisIndex(axis) === state.axis) {
-            state.stretch = factor;
-            input('stretch').value = String(factor);
-            updateLabels();
+            showSliders(factor, 0);
+            sliders.snap(state.axis, factor, 0);
         }
-        return scripted((b) => b.soft.pull(axisIndex(axis), factor, { cap: CAP }));
+        return size;
     },
     /**
      * Twist every anchor mesh by `deg` about a world axis (default: its longest rest axis).
@@ -435,6 +494,87 @@ const api = {
     load: (source, name) => open(source, name || (typeof source === 'string' ? source.split('/').pop() || 'asset.glb' : 'asset.glb')),
     drop,
     shake: () => { paused = false; startShake(); },
+    /**
+     * Move the stretch slider to `value` the way a person does (the slider's input event): the
+     * physics runs, the caps move towards the new pose at the bounded rate.
+     * @param {number} value
+     */
+    stretchSlider: (value) => moveSlider('stretch', value),
+    /** Move the twist slider to `deg` (see stretchSlider). @param {number} deg */
+    twistSlider: (deg) => moveSlider('twist', deg),
+    /** Press "let go". */
+    release: () => { $('release').click(); return true; },
+    /**
+     * Grab the high end of the body (along its long axis) and pull it outwards by `pixels` on
+     * screen within `frames` frames (fast: a few frames), hold it for `hold` frames, let go.
+     * @param {{pixels?: number, frames?: number, hold?: number, moveWhole?: boolean}} [options]
+     * @returns {Promise<{grabbed: boolean, from: number[], to: number[]}>}
+     */
+    drag: async (options = {}) => {
+        await ready;
+        if (!current || !grabber || !current.bodies.length) throw new Error('no asset loaded');
+        const cam = /** @type {any} */ (grabber.camera.camera);
+        const soft = current.bodies[0].soft, p = soft.positions(), k = state.axis;
+        const c = soft.bounds().center;
+        let best = 0, bestScore = -Infinity;
+        for (let i = 0; i < soft.count; i++) {
+            const off = Math.hypot(...[0, 1, 2].filter((j) => j !== k).map((j) => p[3 * i + j] - c[j]));
+            const score = p[3 * i + k] - 0.5 * off;
+            if (score > bestScore) { bestScore = score; best = i; }
+        }
+        const s0 = cam.worldToScreen(new pc.Vec3(p[3 * best], p[3 * best + 1], p[3 * best + 2]));
+        const sc = cam.worldToScreen(new pc.Vec3(c[0], c[1], c[2]));
+        const dir = [s0.x - sc.x, s0.y - sc.y], len = Math.hypot(dir[0], dir[1]) || 1;
+        const pixels = options.pixels ?? 300, n = Math.max(1, options.frames ?? 3);
+        const to = [s0.x + pixels * dir[0] / len, s0.y + pixels * dir[1] / len];
+        paused = false;
+        const grabbed = grabber.grabAt(s0.x, s0.y, !!options.moveWhole);
+        if (grabbed) {
+            for (let f = 1; f <= n; f++) {
+                grabber.dragTo(s0.x + (to[0] - s0.x) * f / n, s0.y + (to[1] - s0.y) * f / n);
+                await frames(1);
+            }
+            await frames(options.hold ?? 60);
+            grabber.release();
+        }
+        return { grabbed, from: [s0.x, s0.y], to };
+    },
+    /**
+     * What the page saw since the last call (or load): rendered frames, physics steps, refreshes
+     * of the splats' sort centres, the longest frame interval (ms) and frames over 250 ms apart,
+     * the anchor meshes' smallest and largest world extent per axis and the latest one, their
+     * rest extent, the guard's trips.
+     * @param {boolean} [reset] start a new record (default true)
+     */
+    monitor: (reset = true) => ({
+        ...watch.take(reset),
+        rest: current && current.bodies.length ? current.restBounds().size : null,
+        guardTrips: current?.guardTrips() ?? 0, stepMs, paused,
+    }),
+    /**
+     * Run the remap of the current asset alone once (the plugin's RemapProbe) and wait for it
+     * (its results read back): wall-clock ms, which on a software rasterizer is the CPU's
+     * emulation, not GPU time.
+     */
+    remapOnce: async () => (timer ? timer.fencedRemapMs(current ? current.bodies.map((b) => b.splat) : []) : null),
+    /**
+     * The asset's own animations: choose one (`chosen`: its position in the list, -1 the rest
+     * pose), set its time (s) and whether it plays; returns the player's state (the list, the
+     * chosen animation, time, duration, playing). Without arguments, only the state.
+     * @param {{chosen?: number, time?: number, playing?: boolean}} [set]
+     */
+    animation: async (set = {}) => {
+        await ready;
+        if (set.chosen !== undefined) player.choose(set.chosen);
+        if (set.time !== undefined) player.seek(set.time);
+        if (set.playing !== undefined) player.playing = !!set.playing && !!player.current;
+        showAnimationUi(player, animUi());
+        dirty = true;
+        if (set.chosen !== undefined || set.time !== undefined) await frames(2);
+        return player.state();
+    },
+    /** The stats panel's text. */
+    stats,
     info,
     frames,
     /** The error shown on the page, or null. */

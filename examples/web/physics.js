@@ -1,25 +1,49 @@
 // The anchor mesh as a Jolt soft body (npm `jolt-physics`, the physics engine Godot 4 also uses).
 //
-// The anchor mesh of an anchored splat primitive is welded (vertices that share a position, e.g.
-// along UV seams, become one soft-body vertex), turned into a Jolt soft body (edge, shear and
-// dihedral bend constraints from its faces, plus pressure when the mesh is closed), and simulated
-// in world space next to a static ground box. Each frame the soft-body vertices are mapped back to
-// the anchor vertex order (`readAnchorVertices`), so the caller can convert them to splat-local
-// space and hand them to the remap.
+// Each anchor mesh gets a physics mesh (physmesh.js: by default a lattice of tetrahedra around
+// it, within a node budget), turned into a Jolt soft body and simulated in world space next to a
+// static ground box. Each frame the anchor vertices are read back through the embedding
+// (`readAnchorVertices`), so the caller can convert them to splat-local space and hand them to
+// the remap; the anchor mesh itself is never changed.
 //
-// Manipulations are done the way a hand does them: a set of vertices is pinned (made kinematic,
-// inverse mass 0) and driven to target positions while the rest of the body follows under its
-// constraints. The scripted manipulations (`pose`) are deterministic: they set the pins and the
-// free vertices to an initial guess, zero all velocities, switch gravity off and step the solver a
-// fixed number of times with a fixed time step.
+// Manipulations are done the way a hand does them: a set of physics vertices is pinned (made
+// kinematic, inverse mass 0) and driven towards target positions while the rest of the body
+// follows under its constraints. Pinned vertices move towards their targets at a bounded speed
+// (`pinSpeed`), never in one jump; vertex speeds are capped (`maxVelocity`), and a body that
+// blows up anyway is put back to its rest shape (`guard`, counted in `guardTrips`). The scripted
+// manipulations (`pose`) are deterministic: they set the pins and the free vertices to an initial
+// guess, zero all velocities, switch gravity off and step the solver a fixed number of times with
+// a fixed time step.
 //
 // The module takes the initialised Jolt module as an argument, so it runs in the browser and in
 // Node alike.
 
+import { bounds, buildPhysicsMesh, applyEmbedding } from './physmesh.js';
+
+export { bounds, weldVertices, weldFaces, isClosed, coreVertices, buildPhysicsMesh, DEFAULT_BUDGET } from './physmesh.js';
+
 const LAYER_STATIC = 0;
 const LAYER_MOVING = 1;
+/** Stability defaults, in rest diagonals of the body (per second): how fast pinned vertices move
+ * towards their targets, the speed cap of every vertex, and the extent at which the guard puts a
+ * body back to rest (see README, "Stability"). */
+const PIN_SPEED = 1.5;
+const MAX_VELOCITY = 6;
+const GUARD = 3;
 
 /** @typedef {0|1|2} Axis */
+
+/**
+ * @typedef {{mass?: number, edgeCompliance?: number, bendCompliance?: number, pressure?: number,
+ *            iterations?: number, damping?: number, friction?: number, vertexRadius?: number,
+ *            bendType?: number, shearCompliance?: number, spokeCompliance?: number, coreCount?: number,
+ *            kind?: 'lattice'|'surface', budget?: number, latticeCompliance?: number, diagonalCompliance?: number,
+ *            volumeCompliance?: number, pinSpeed?: number, maxVelocity?: number, guard?: number}} SoftBodyOptions
+ *   kind, budget and the compliances of the physics mesh: see physmesh.js. pinSpeed: fastest speed
+ *   of pinned vertices towards their targets, maxVelocity: of any vertex (both in rest diagonals
+ *   per second); guard: extent (in rest diagonals) beyond which the body is put back to its rest
+ *   shape (0: never)
+ */
 
 /**
  * Normalise an axis argument ('x' | 'y' | 'z' | 0 | 1 | 2).
@@ -30,121 +54,6 @@ export function axisIndex(axis) {
     const i = typeof axis === 'number' ? axis : 'xyz'.indexOf(String(axis).toLowerCase());
     if (i !== 0 && i !== 1 && i !== 2) throw new Error(`axis must be x, y, z, 0, 1 or 2 (got ${axis})`);
     return /** @type {Axis} */ (i);
-}
-
-/**
- * Weld vertices that share a position (within `tolerance`, absolute units).
- * Positions are snapped to a grid of `tolerance`; exact duplicates always weld.
- * @param {Float32Array} vertices 3V positions
- * @param {number} tolerance
- * @returns {{map: Uint32Array, positions: Float32Array, count: number}} map: anchor vertex -> welded vertex
- */
-export function weldVertices(vertices, tolerance) {
-    const n = vertices.length / 3;
-    const map = new Uint32Array(n);
-    /** @type {Map<string, number>} */
-    const seen = new Map();
-    const out = [];
-    const inv = tolerance > 0 ? 1 / tolerance : 0;
-    for (let i = 0; i < n; i++) {
-        const x = vertices[3 * i], y = vertices[3 * i + 1], z = vertices[3 * i + 2];
-        const key = inv ? `${Math.round(x * inv)},${Math.round(y * inv)},${Math.round(z * inv)}` : `${x},${y},${z}`;
-        let w = seen.get(key);
-        if (w === undefined) {
-            w = out.length / 3;
-            seen.set(key, w);
-            out.push(x, y, z);
-        }
-        map[i] = w;
-    }
-    return { map, positions: new Float32Array(out), count: out.length / 3 };
-}
-
-/**
- * Faces on welded vertices, without degenerate or repeated faces.
- * @param {Uint32Array} indices 3F anchor-vertex indices
- * @param {Uint32Array} map anchor vertex -> welded vertex
- * @returns {Uint32Array}
- */
-export function weldFaces(indices, map) {
-    const out = [];
-    const seen = new Set();
-    for (let f = 0; f < indices.length; f += 3) {
-        const a = map[indices[f]], b = map[indices[f + 1]], c = map[indices[f + 2]];
-        if (a === b || b === c || a === c) continue;
-        const key = [a, b, c].sort((p, q) => p - q).join(',');
-        if (seen.has(key)) continue;
-        seen.add(key);
-        out.push(a, b, c);
-    }
-    return new Uint32Array(out);
-}
-
-/**
- * Whether a triangle mesh is closed (every edge shared by exactly two faces).
- * @param {Uint32Array} faces
- * @returns {boolean}
- */
-export function isClosed(faces) {
-    /** @type {Map<string, number>} */
-    const count = new Map();
-    for (let f = 0; f < faces.length; f += 3) {
-        for (let e = 0; e < 3; e++) {
-            const a = faces[f + e], b = faces[f + (e + 1) % 3];
-            const key = a < b ? `${a},${b}` : `${b},${a}`;
-            count.set(key, (count.get(key) || 0) + 1);
-        }
-    }
-    if (count.size === 0) return false;
-    for (const c of count.values()) if (c !== 2) return false;
-    return true;
-}
-
-/**
- * Axis-aligned bounds of 3V positions.
- * @param {ArrayLike<number>} p
- * @returns {{min: number[], max: number[], size: number[], center: number[]}}
- */
-export function bounds(p) {
-    const min = [Infinity, Infinity, Infinity], max = [-Infinity, -Infinity, -Infinity];
-    for (let i = 0; i < p.length; i += 3) {
-        for (let k = 0; k < 3; k++) {
-            const v = p[i + k];
-            if (v < min[k]) min[k] = v;
-            if (v > max[k]) max[k] = v;
-        }
-    }
-    const size = [0, 1, 2].map((k) => max[k] - min[k]);
-    const center = [0, 1, 2].map((k) => 0.5 * (max[k] + min[k]));
-    return { min, max, size, center };
-}
-
-/**
- * Interior points of a closed mesh: `count` points evenly spread along its longest axis through
- * the centroid (count 1: the centroid; 0: about two per thickness along the axis).
- * @param {Float32Array} p 3W positions
- * @param {number} count
- * @returns {number[]}
- */
-export function coreVertices(p, count) {
-    const n = p.length / 3;
-    const c = [0, 0, 0];
-    for (let i = 0; i < n; i++) for (let k = 0; k < 3; k++) c[k] += p[3 * i + k] / n;
-    const b = bounds(p);
-    const axis = b.size.indexOf(Math.max(...b.size));
-    if (count <= 0) {
-        const others = b.size.filter((_, k) => k !== axis);
-        const thick = Math.max(1e-9, 0.5 * (others[0] + others[1]));
-        count = Math.max(1, Math.min(12, Math.round(2 * b.size[axis] / thick)));
-    }
-    if (count <= 1) return c;
-    const out = [];
-    for (let j = 0; j < count; j++) {
-        const q = c.slice();
-        q[axis] = b.min[axis] + b.size[axis] * (j + 0.5) / count;
-        out.push(...q);
-    }
-    return out;
 }
 
 /** A Jolt physics system with a static ground box. */
@@ -219,98 +128,104 @@ export class PhysicsWorld {
     step(dt) {
         this.jolt.Step(dt, 1);
     }
+
+    /** Free the Jolt system (bodies first: SoftBodyMesh.destroy). */
+    destroy() {
+        if (this.ground) {
+            this.bodies.RemoveBody(this.ground.GetID());
+            this.bodies.DestroyBody(this.ground.GetID());
+            this.ground = null;
+        }
+        this.Jolt.destroy(this.jolt);
+    }
 }
 
 /**
- * The anchor mesh of one anchored primitive as a soft body, in world space.
+ * The anchor mesh of one anchored primitive as a soft body, in world space: a Jolt soft body on
+ * its physics mesh (physmesh.js), and the embedding that moves the anchor vertices with it.
  */
 export class SoftBodyMesh {
     /**
      * @param {PhysicsWorld} world
      * @param {{vertices: Float32Array, indices: Uint32Array}} mesh world-space anchor vertices (3V) and faces (3F)
-     * @param {{mass?: number, edgeCompliance?: number, bendCompliance?: number, pressure?: number,
-     *          iterations?: number, damping?: number, friction?: number, vertexRadius?: number,
-     *          bendType?: number, shearCompliance?: number, spokeCompliance?: number, coreCount?: number}} [options]
+     * @param {SoftBodyOptions} [options]
      */
     constructor(world, mesh, options = {}) {
         const Jolt = world.Jolt;
         this.world = world;
         this.Jolt = Jolt;
-        const rest = bounds(mesh.vertices);
-        const diag = Math.hypot(...rest.size) || 1;
+        const restBox = bounds(mesh.vertices);
+        const diag = Math.hypot(...restBox.size) || 1;
         const o = world.origin, u = world.unit;
         this.origin = o;
         this.unit = u;
-        const weld = weldVertices(mesh.vertices, diag * 1e-6);
-        this.map = weld.map;
-        this.count = weld.count;
+        const pm = buildPhysicsMesh(mesh.vertices, mesh.indices, options);
+        /** the physics mesh: surface (the welded anchor mesh) or lattice */
+        this.physics = pm;
+        this.kind = pm.kind;
         this.anchorCount = mesh.vertices.length / 3;
-        this.rest = weld.positions;
-        this.faces = weldFaces(mesh.indices, weld.map);
-        this.closed = isClosed(this.faces);
-        if (this.faces.length === 0) throw new Error('the anchor mesh has no non-degenerate face');
+        /** rest anchor vertices (world), the base of the embedding */
+        this.restAnchor = Float32Array.from(mesh.vertices);
+        /** vertices that are pinned, picked and drawn (welded surface vertices or lattice nodes) */
+        this.count = pm.count;
+        this.simCount = pm.positions.length / 3;
+        this.restAll = pm.positions;
+        this.rest = pm.positions.slice(0, 3 * pm.count);
+        this.faces = pm.faces;
+        this.closed = pm.closed;
+        /** anchor vertex -> welded vertex (surface kind), else null */
+        this.map = pm.kind === 'surface' ? pm.embedding.nodes : null;
 
-        // A closed mesh gets interior "core" vertices (a chain of points along its longest axis)
-        // tied to the surface by spokes (distance constraints): the body keeps its cross-sections
-        // like a solid instead of collapsing like an empty shell when twisted or stretched.
-        const core = this.closed && (options.spokeCompliance ?? 0) >= 0 ? coreVertices(this.rest, options.coreCount ?? 0) : [];
-        this.simCount = this.count + core.length / 3;
         const shared = new Jolt.SoftBodySharedSettings();
         const mass = options.mass ?? 1;
         const invMass = this.simCount / mass;
         const v = new Jolt.SoftBodySharedSettingsVertex();
-        const all = new Float32Array(3 * this.simCount);
-        all.set(this.rest);
-        all.set(core, 3 * this.count);
+        const all = pm.positions;
         for (let i = 0; i < this.simCount; i++) {
-            v.mPosition = new Jolt.Float3((all[3 * i] - o[0]) * u, (all[3 * i + 1] - o[1]) * u, (all[3 * i + 2] - o[2]) * u);
+            const p = new Jolt.Float3((all[3 * i] - o[0]) * u, (all[3 * i + 1] - o[1]) * u, (all[3 * i + 2] - o[2]) * u);
+            v.mPosition = p;
+            Jolt.destroy(p);
             v.mInvMass = invMass;
             shared.mVertices.push_back(v);
         }
         Jolt.destroy(v);
-        this.restAll = all;
         const face = new Jolt.SoftBodySharedSettingsFace(0, 0, 0, 0);
-        for (let f = 0; f < this.faces.length; f += 3) {
-            face.set_mVertex(0, this.faces[f]);
-            face.set_mVertex(1, this.faces[f + 1]);
-            face.set_mVertex(2, this.faces[f + 2]);
+        for (let f = 0; f < pm.faces.length; f += 3) {
+            face.set_mVertex(0, pm.faces[f]);
+            face.set_mVertex(1, pm.faces[f + 1]);
+            face.set_mVertex(2, pm.faces[f + 2]);
             shared.mFaces.push_back(face);
         }
         Jolt.destroy(face);
-        const attr = new Jolt.SoftBodySharedSettingsVertexAttributes();
-        attr.mCompliance = options.edgeCompliance ?? 1e-3;
-        attr.mShearCompliance = options.shearCompliance ?? 1e-3;
-        attr.mBendCompliance = options.bendCompliance ?? 0.02;
-        shared.CreateConstraints(attr, 1, options.bendType ?? Jolt.SoftBodySharedSettings_EBendType_Dihedral);
-        if (core.length) {
-            // Spokes: every surface vertex to its two nearest core vertices; a spine along the core.
-            const nc = core.length / 3;
-            const spoke = options.spokeCompliance ?? 1e-4;
-            const add = (/** @type {number} */ i, /** @type {number} */ j, /** @type {number} */ c) => {
-                const e = new Jolt.SoftBodySharedSettingsEdge(i, j, c);
-                shared.mEdgeConstraints.push_back(e);
-                Jolt.destroy(e);
-            };
-            for (let i = 0; i < this.count; i++) {
-                const d = [];
-                for (let k = 0; k < nc; k++) {
-                    let q = 0;
-                    for (let j = 0; j < 3; j++) q += (all[3 * i + j] - core[3 * k + j]) ** 2;
-                    d.push([q, k]);
-                }
-                d.sort((x, y) => x[0] - y[0]);
-                for (const [, k] of d.slice(0, Math.min(2, nc))) add(i, this.count + k, spoke);
-            }
-            for (let k = 0; k + 1 < nc; k++) add(this.count + k, this.count + k + 1, attr.mCompliance);
-            shared.CalculateEdgeLengths();
+        if (pm.kind === 'surface') {
+            // edge, shear and bend constraints from the faces; the core's spokes and spine below
+            const attr = new Jolt.SoftBodySharedSettingsVertexAttributes();
+            attr.mCompliance = options.edgeCompliance ?? 1e-3;
+            attr.mShearCompliance = options.shearCompliance ?? 1e-3;
+            attr.mBendCompliance = options.bendCompliance ?? 0.02;
+            shared.CreateConstraints(attr, 1, options.bendType ?? Jolt.SoftBodySharedSettings_EBendType_Dihedral);
+            Jolt.destroy(attr);
         }
-        Jolt.destroy(attr);
+        for (let e = 0; e < pm.edgeCompliance.length; e++) {
+            const edge = new Jolt.SoftBodySharedSettingsEdge(pm.edges[2 * e], pm.edges[2 * e + 1], pm.edgeCompliance[e]);
+            shared.mEdgeConstraints.push_back(edge);
+            Jolt.destroy(edge);
+        }
+        if (pm.edgeCompliance.length) shared.CalculateEdgeLengths();
+        const volC = options.volumeCompliance ?? 1e-6;
+        for (let t = 0; t < pm.volumes.length; t += 4) {
+            const vol = new Jolt.SoftBodySharedSettingsVolume(pm.volumes[t], pm.volumes[t + 1], pm.volumes[t + 2], pm.volumes[t + 3], volC);
+            shared.mVolumeConstraints.push_back(vol);
+            Jolt.destroy(vol);
+        }
+        if (pm.volumes.length) shared.CalculateVolumeConstraintVolumes();
         shared.Optimize();
 
         const cs = new Jolt.SoftBodyCreationSettings(shared, new Jolt.RVec3(0, 0, 0), new Jolt.Quat(0, 0, 0, 1), LAYER_MOVING);
         cs.mNumIterations = options.iterations ?? 10;
         cs.mLinearDamping = options.damping ?? 0.5;
-        cs.mPressure = this.closed ? (options.pressure ?? 0) : 0;
+        cs.mPressure = pm.kind === 'surface' && this.closed ? (options.pressure ?? 0) : 0;
+        cs.mMaxLinearVelocity = (options.maxVelocity ?? MAX_VELOCITY) * diag * u;
         cs.mUpdatePosition = false;
         cs.mMakeRotationIdentity = false;
         cs.mAllowSleeping = false;
@@ -322,17 +237,39 @@ export class SoftBodyMesh {
         world.bodies.AddBody(this.body.GetID(), Jolt.EActivation_Activate);
         this.motion = Jolt.castObject(this.body.GetMotionProperties(), Jolt.SoftBodyMotionProperties);
         const arr = this.motion.GetVertices();
-        /** @type {any[]} Jolt SoftBodyVertex views, welded order */
+        /** @type {any[]} Jolt SoftBodyVertex views, physics vertex order */
         this.verts = [];
         for (let i = 0; i < this.simCount; i++) this.verts.push(arr.at(i));
+        /** rest positions in the simulation frame, as Jolt holds them (the embedding's X) */
+        this.simRest = new Float32Array(3 * this.simCount);
+        this.readSim(this.simRest);
         this.invMass = invMass;
-        /** @type {Float32Array|null} targets (3W) of pinned vertices, NaN where free */
+        /** @type {Float32Array|null} targets (3W, world) of pinned vertices, NaN where free */
         this.targets = null;
+        /** where pinned vertices are driven this step (simulation frame), moving towards the targets */
+        this.drive = new Float32Array(3 * this.simCount);
+        /** rest size in the simulation frame: speeds and the guard are relative to it */
+        this.simDiag = diag * u;
+        this.pinSpeed = options.pinSpeed ?? PIN_SPEED;
+        this.guardLimit = options.guard ?? GUARD;
+        /** times the guard put an exploded body back to its rest shape */
+        this.guardTrips = 0;
         this.gravity = 0;
         this.motion.SetGravityFactor(0);
+        this._disp = new Float32Array(3 * this.simCount);
+        this._sim = new Float32Array(3 * this.simCount);
     }
 
-    /** Current welded positions (3W, world space). @param {Float32Array} [out] */
+    /** Simulation-frame positions of every simulated vertex (3 * simCount). @param {Float32Array} out */
+    readSim(out) {
+        for (let i = 0; i < this.simCount; i++) {
+            const p = this.verts[i].mPosition;
+            out[3 * i] = p.GetX(); out[3 * i + 1] = p.GetY(); out[3 * i + 2] = p.GetZ();
+        }
+        return out;
+    }
+
+    /** Current positions of the physics vertices (3 * count, world space). @param {Float32Array} [out] */
     positions(out = new Float32Array(3 * this.count)) {
         for (let i = 0; i < this.count; i++) {
             const p = this.verts[i].mPosition, o = this.origin, k = 1 / this.unit;
@@ -342,22 +279,23 @@ export class SoftBodyMesh {
     }
 
     /**
-     * Current positions in the anchor vertex order (3V, world space): duplicates that were welded
-     * get the same position.
+     * Current anchor vertices (3V, world space, anchor vertex order) through the embedding: each
+     * is its rest position plus the weighted displacement of its physics vertices, so at rest
+     * it is exactly the rest anchor vertex.
      * @param {Float32Array} [out]
      */
     readAnchorVertices(out = new Float32Array(3 * this.anchorCount)) {
-        const w = this.positions(this._tmp || (this._tmp = new Float32Array(3 * this.count)));
-        for (let i = 0; i < this.anchorCount; i++) {
-            const j = this.map[i];
-            out[3 * i] = w[3 * j]; out[3 * i + 1] = w[3 * j + 1]; out[3 * i + 2] = w[3 * j + 2];
+        const d = this._disp, k = 1 / this.unit;
+        for (let i = 0; i < this.count; i++) {
+            const p = this.verts[i].mPosition, r = this.simRest;
+            d[3 * i] = (p.GetX() - r[3 * i]) * k; d[3 * i + 1] = (p.GetY() - r[3 * i + 1]) * k; d[3 * i + 2] = (p.GetZ() - r[3 * i + 2]) * k;
         }
-        return out;
+        return applyEmbedding(this.physics.embedding, this.restAnchor, d, out);
     }
 
-    /** Current world-space bounds of the body. */
+    /** Current world-space bounds of the anchor mesh (through the embedding). */
     bounds() {
-        return bounds(this.positions());
+        return bounds(this.readAnchorVertices());
     }
 
     /** Gravity on (1) or off (0). @param {number} factor */
@@ -367,8 +305,10 @@ export class SoftBodyMesh {
     }
 
     /**
-     * Pin vertices (kinematic, driven to targets) or free them.
-     * @param {Map<number, number[]>|null} pins welded vertex -> world target; null frees all
+     * Pin vertices (kinematic, driven to targets) or free them. A pinned vertex starts where it
+     * is and moves towards its target at most `pinSpeed` rest diagonals per second, so a target
+     * that jumps (a slider clicked far away, a fast drag) never teleports it.
+     * @param {Map<number, number[]>|null} pins physics vertex -> world target; null frees all
      */
     setPins(pins) {
         if (!pins || pins.size === 0) {
@@ -379,8 +319,12 @@ export class SoftBodyMesh {
         this.targets = new Float32Array(3 * this.simCount).fill(NaN);
         for (let i = 0; i < this.simCount; i++) {
             const t = pins.get(i);
-            this.verts[i].mInvMass = t ? 0 : this.invMass;
-            if (t) this.targets.set(t, 3 * i);
+            const v = this.verts[i];
+            v.mInvMass = t ? 0 : this.invMass;
+            if (!t) continue;
+            this.targets.set(t, 3 * i);
+            const p = v.mPosition;
+            this.drive[3 * i] = p.GetX(); this.drive[3 * i + 1] = p.GetY(); this.drive[3 * i + 2] = p.GetZ();
         }
     }
 
@@ -390,48 +334,103 @@ export class SoftBodyMesh {
     }
 
     /**
-     * Advance the world one fixed step (this body alone: pinned vertices get the velocity that
-     * takes them to their target within the step; Jolt moves kinematic vertices with their
-     * velocity).
+     * Advance the world one fixed step (this body alone).
      * @param {number} dt
      */
     step(dt) {
         this.prepare(dt);
         this.world.step(dt);
+        this.guard();
     }
 
     /**
-     * Before a world step of `dt`: give pinned vertices the velocity that takes them to their
-     * target within the step. Call for every body, then `PhysicsWorld.step` once.
+     * Before a world step of `dt`: move the pinned vertices' drive positions towards their targets
+     * (all by the same fraction of the way, at most `pinSpeed` rest diagonals per second for the
+     * farthest, so a pinned cap moves as a whole) and give each the velocity that takes it there
+     * within the step (Jolt moves kinematic vertices with their velocity). Call for every body,
+     * then `PhysicsWorld.step` once, then `guard` for every body.
      * @param {number} dt
      */
     prepare(dt) {
         const t = this.targets;
-        if (t) {
-            for (let i = 0; i < this.simCount; i++) {
-                if (Number.isNaN(t[3 * i])) continue;
-                const v = this.verts[i], p = v.mPosition, o = this.origin, u = this.unit;
-                v.mVelocity.Set(((t[3 * i] - o[0]) * u - p.GetX()) / dt, ((t[3 * i + 1] - o[1]) * u - p.GetY()) / dt,
-                    ((t[3 * i + 2] - o[2]) * u - p.GetZ()) / dt);
-            }
+        if (!t) return;
+        const o = this.origin, u = this.unit, d = this.drive;
+        let far = 0;
+        for (let i = 0; i < this.simCount; i++) {
+            if (Number.isNaN(t[3 * i])) continue;
+            const dx = (t[3 * i] - o[0]) * u - d[3 * i], dy = (t[3 * i + 1] - o[1]) * u - d[3 * i + 1], dz = (t[3 * i + 2] - o[2]) * u - d[3 * i + 2];
+            far = Math.max(far, dx * dx + dy * dy + dz * dz);
+        }
+        far = Math.sqrt(far);
+        const reach = this.pinSpeed * this.simDiag * dt;
+        const f = far > reach ? reach / far : 1;
+        for (let i = 0; i < this.simCount; i++) {
+            if (Number.isNaN(t[3 * i])) continue;
+            for (let k = 0; k < 3; k++) d[3 * i + k] += f * ((t[3 * i + k] - o[k]) * u - d[3 * i + k]);
+            const v = this.verts[i], p = v.mPosition;
+            v.mVelocity.Set((d[3 * i] - p.GetX()) / dt, (d[3 * i + 1] - p.GetY()) / dt, (d[3 * i + 2] - p.GetZ()) / dt);
         }
     }
 
+    /** Whether pinned vertices are still on their way to their targets. */
+    get pinsMoving() {
+        const t = this.targets;
+        if (!t) return false;
+        const o = this.origin, u = this.unit, eps = 1e-6 * this.simDiag;
+        for (let i = 0; i < 3 * this.simCount; i++) {
+            if (!Number.isNaN(t[i]) && Math.abs((t[i] - o[i % 3]) * u - this.drive[i]) > eps) return true;
+        }
+        return false;
+    }
+
     /**
-     * Teleport every simulated vertex (3 * simCount world positions: the welded surface vertices,
-     * then the core vertices) and zero all velocities.
-     * @param {ArrayLike<number>} p
+     * After a world step: if the body has blown up (a non-finite position, or an extent beyond
+     * `guard` rest diagonals), put it back to its rest shape where its centre is, at rest; pinned
+     * vertices then move to their targets again at the bounded speed. Counted in `guardTrips`.
+     * @returns {boolean} whether it had to
      */
-    teleport(p) {
+    guard() {
+        if (!(this.guardLimit > 0)) return false;
+        const p = this.readSim(this._sim);
+        const b = bounds(p);
+        const limit = this.guardLimit * this.simDiag;
+        const ok = b.size.every((s) => Number.isFinite(s) && s <= limit);
+        if (ok) return false;
+        this.guardTrips++;
+        const r = bounds(this.simRest);
+        const shift = b.center.map((c, k) => (Number.isFinite(c) && Math.abs(c - r.center[k]) < 100 * this.simDiag ? c - r.center[k] : 0));
+        const q = this.simRest.map((x, i) => x + shift[i % 3]);
+        this.teleportSim(q);
+        return true;
+    }
+
+    /**
+     * Teleport every simulated vertex (simulation frame) and zero all velocities; pinned vertices
+     * are driven from there.
+     * @param {ArrayLike<number>} q 3 * simCount
+     */
+    teleportSim(q) {
         for (let i = 0; i < this.simCount; i++) {
             const v = this.verts[i];
-            const o = this.origin, u = this.unit;
-            const x = (p[3 * i] - o[0]) * u, y = (p[3 * i + 1] - o[1]) * u, z = (p[3 * i + 2] - o[2]) * u;
+            const x = q[3 * i], y = q[3 * i + 1], z = q[3 * i + 2];
             v.mPosition.Set(x, y, z);
             v.mPreviousPosition.Set(x, y, z);
             v.mVelocity.Set(0, 0, 0);
+            this.drive[3 * i] = x; this.drive[3 * i + 1] = y; this.drive[3 * i + 2] = z;
         }
         this.world.bodies.ActivateBody(this.body.GetID());
+    }
+
+    /**
+     * Teleport every simulated vertex (3 * simCount world positions: the physics vertices, then
+     * the core vertices) and zero all velocities.
+     * @param {ArrayLike<number>} p
+     */
+    teleport(p) {
+        const o = this.origin, u = this.unit;
+        const q = new Float64Array(3 * this.simCount);
+        for (let i = 0; i < 3 * this.simCount; i++) q[i] = (p[i] - o[i % 3]) * u;
+        this.teleportSim(q);
     }
 
     /** Add a velocity (world units per second) to every vertex. @param {number[]} vel */
@@ -446,7 +445,7 @@ export class SoftBodyMesh {
     /** Back to the rest shape, unpinned, at rest, without gravity. */
     reset() {
         this.setPins(null);
-        this.teleport(this.restAll);
+        this.teleportSim(this.simRest);
         this.setGravity(0);
     }
 
@@ -457,7 +456,7 @@ export class SoftBodyMesh {
     }
 
     /**
-     * Welded vertices within a fraction `frac` of the rest extent from the low (-1) or high (+1)
+     * Physics vertices within a fraction `frac` of the rest extent from the low (-1) or high (+1)
      * end along `axis`.
      * @param {Axis} axis @param {-1|1} end @param {number} frac
      * @returns {number[]}

@@ -1,10 +1,10 @@
 // One loaded asset of the demo: its anchored splats (GPU remap, @gsverse/web/playcanvas), one
 // Jolt soft body per anchor mesh (physics.js), and the per-frame link between them.
 //
-// The soft bodies live in world space. Each frame their vertices are read back in anchor-vertex
-// order, taken to the splat's local space with the inverse of the splat entity's world matrix,
-// and handed to AnchoredSplat.setVertices; the remap pass moves the splats on the next frame.
-// Plain (unanchored) splats of the asset are never touched.
+// The soft bodies live in world space. Each frame the anchor vertices are read back through each
+// body's embedding (physmesh.js), taken to the splat's local space with the inverse of the splat
+// entity's world matrix, and handed to AnchoredSplat.setVertices; the remap pass moves the splats
+// on the next frame. Plain (unanchored) splats of the asset are never touched.
 
 import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
 import { SoftBodyMesh, bounds } from './physics.js';
@@ -71,9 +71,10 @@ function uniqueEdges(faces) {
  * @property {Float64Array} toLocal  its inverse
  * @property {Float32Array} world    current anchor vertices, world space (3V)
  * @property {Float32Array} local    current anchor vertices, splat-local space (3V)
- * @property {Uint32Array} edges     welded edges for the wireframe
+ * @property {Float32Array} posed    scratch: the animated pose plus the physics displacement (3V)
+ * @property {Uint32Array} edges     physics-mesh edges for the wireframe
  * @property {Float32Array} lines    wireframe line buffer
- * @property {Float32Array} wire     welded positions scratch for the wireframe
+ * @property {Float32Array} wire     physics vertex positions scratch for the wireframe
  */
 
 export class DemoAsset {
@@ -84,11 +85,12 @@ export class DemoAsset {
      * @param {import('./physics.js').PhysicsWorld} world
      * @param {string|Uint8Array} source
      * @param {string} name
+     * @param {import('./physics.js').SoftBodyOptions} [physics] soft-body options (physics mesh kind, budget, ...)
      */
-    static async load(app, world, source, name) {
+    static async load(app, world, source, name, physics = {}) {
         const loaded = await loadAnchoredAsset(app, source, { name });
         try {
-            return new DemoAsset(app, world, loaded, name);
+            return new DemoAsset(app, world, loaded, name, physics);
         } catch (err) {
             for (const s of loaded.anchored) s.destroy();
             loaded.root.destroy();
@@ -103,16 +105,19 @@ export class DemoAsset {
     /**
      * @param {any} app
      * @param {import('./physics.js').PhysicsWorld} world
-     * @param {{root: any, anchored: any[], plain: any[], asset: any}} loaded
+     * @param {{root: any, anchored: any[], plain: any[], asset: any, animations?: {index: number, name: string, duration: number}[]}} loaded
      * @param {string} name
+     * @param {import('./physics.js').SoftBodyOptions} [physics]
      */
-    constructor(app, world, loaded, name) {
+    constructor(app, world, loaded, name, physics = {}) {
         this.app = app;
         this.world = world;
         this.name = name;
         this.root = loaded.root;
         this.asset = loaded.asset;
         this.plain = loaded.plain;
+        /** the file's animations of its animated anchor meshes ([] when none) */
+        this.animations = loaded.animations ?? [];
         /** @type {Body[]} */
         this.bodies = [];
         // one simulation frame for the whole asset: about one unit large, centred
@@ -126,7 +131,7 @@ export class DemoAsset {
             world.setFrame(b.center, 1 / (Math.max(...b.size) || 1));
         }
         try {
-            this.build(world, loaded.anchored);
+            this.build(world, loaded.anchored, physics);
         } catch (err) {
             for (const b of this.bodies) b.soft.destroy();
             this.bodies = [];
@@ -139,18 +144,19 @@ export class DemoAsset {
      * One soft body per anchored splat.
      * @param {import('./physics.js').PhysicsWorld} world
      * @param {any[]} anchored AnchoredSplat[]
+     * @param {import('./physics.js').SoftBodyOptions} physics
      * @private
      */
-    build(world, anchored) {
+    build(world, anchored, physics) {
         for (const splat of anchored) {
             const toWorld = Float64Array.from(splat.entity.getWorldTransform().data);
             const mesh = splat.prim.anchorMesh;
             const worldVerts = transformPoints(toWorld, mesh.vertices, new Float32Array(mesh.vertices.length));
-            const soft = new SoftBodyMesh(world, { vertices: worldVerts, indices: mesh.indices });
+            const soft = new SoftBodyMesh(world, { vertices: worldVerts, indices: mesh.indices }, physics);
             const edges = uniqueEdges(soft.faces);
             this.bodies.push({
                 splat, soft, toWorld, toLocal: invertAffine(toWorld),
-                world: worldVerts, local: new Float32Array(mesh.vertices.length),
+                world: worldVerts, local: new Float32Array(mesh.vertices.length), posed: new Float32Array(mesh.vertices.length),
                 edges, lines: new Float32Array(edges.length * 3), wire: new Float32Array(3 * soft.count),
             });
         }
@@ -171,40 +177,77 @@ export class DemoAsset {
         return bounds(all);
     }
 
-    /** Current world bounds of the anchor meshes. */
+    /** Current world bounds of the anchor meshes (through the embedding: the mesh the splats follow). */
     bounds() {
-        const all = [];
-        for (const b of this.bodies) all.push(...b.soft.positions());
-        return bounds(all);
+        for (const b of this.bodies) b.soft.readAnchorVertices(b.world);
+        return this.syncedBounds();
     }
 
-    /** Soft bodies -> splats: read vertices, to splat-local space, setVertices. */
-    sync() {
+    /** World bounds of the anchor meshes as last handed to the splats (`sync`). */
+    syncedBounds() {
+        const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
         for (const b of this.bodies) {
-            b.soft.readAnchorVertices(b.world);
-            transformPoints(b.toLocal, b.world, b.local);
-            b.splat.setVertices(b.local);
+            const r = bounds(b.world);
+            for (let k = 0; k < 3; k++) {
+                lo[k] = Math.min(lo[k], r.min[k]);
+                hi[k] = Math.max(hi[k], r.max[k]);
+            }
         }
-    }
-
-    /** Sum of the bodies' last setVertices CPU times, ms. */
-    remapCpuMs() {
-        let t = 0;
-        for (const b of this.bodies) t += b.splat.lastRemapMs || 0;
-        return t;
+        return bounds([...lo, ...hi]);
     }
 
     /**
-     * Advance the physics one fixed step.
+     * Soft bodies -> splats: read the anchor vertices, to splat-local space, setVertices (the
+     * plugin paces the deformed sort centres by the engine's sorts). With an animation `pose`,
+     * an animated anchor mesh shows the file's animation at that time plus the soft body's
+     * displacement from its rest pose (player.js).
+     * @param {{index: number, time: number}|null} [pose]
+     */
+    sync(pose = null) {
+        for (const b of this.bodies) {
+            b.soft.readAnchorVertices(b.world);
+            transformPoints(b.toLocal, b.world, b.local);
+            if (pose && b.splat.animation) {
+                const animated = b.splat.animation.sample(pose.index, pose.time, b.posed);
+                const rest = b.splat.prim.anchorMesh.vertices;
+                for (let i = 0; i < animated.length; i++) animated[i] += b.local[i] - rest[i];
+                b.splat.setVertices(animated);
+            } else {
+                b.splat.setVertices(b.local);
+            }
+        }
+    }
+
+    /**
+     * CPU times of the bodies' last setVertices, ms: the whole call (vertex upload and sort
+     * centres) and the part spent on the deformed sort centres.
+     */
+    remapCpuMs() {
+        let total = 0, sort = 0;
+        for (const b of this.bodies) {
+            total += b.splat.lastRemapMs || 0;
+            sort += b.splat.lastSortMs || 0;
+        }
+        return { total, sort };
+    }
+
+    /** Times the guard had to put a body back to rest. */
+    guardTrips() {
+        return this.bodies.reduce((n, b) => n + b.soft.guardTrips, 0);
+    }
+
+    /**
+     * Advance the physics one fixed step (pins driven, the world stepped, blown-up bodies put back).
      * @param {number} dt
      */
     step(dt) {
         for (const b of this.bodies) b.soft.prepare(dt);
         this.world.step(dt);
+        for (const b of this.bodies) b.soft.guard();
     }
 
     /**
-     * Draw the anchor meshes as wireframes (immediate lines, current physics positions).
+     * Draw the physics meshes as wireframes (immediate lines, current physics positions).
      * @param {any} color pc.Color
      */
     drawWireframe(color) {

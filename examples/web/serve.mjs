@@ -7,7 +7,7 @@
 // Serves the demo page (this folder), the plugin sources (plugins/web/src), and the two browser
 // builds the page needs from plugins/web/node_modules (the PlayCanvas ES module build and the
 // jolt-physics wasm-compat build) under /vendor/, mapped by the page's import map. The asset
-// (default: examples/capsule/anchored.glb) is served at /asset/NAME; the page reads /config.json
+// (default: examples/web/capsule.glb, shipped) is served at /asset/NAME; the page reads /config.json
 // to find it. Only files under those roots are served (no path traversal), only on 127.0.0.1,
 // and nothing is fetched from the network.
 
@@ -21,7 +21,11 @@ const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, '..', '..');
 const PLUGIN = path.join(REPO, 'plugins', 'web');
 const MODULES = path.join(PLUGIN, 'node_modules');
-export const DEFAULT_ASSET = path.join(REPO, 'examples', 'capsule', 'anchored.glb');
+/** The demo's own asset, shipped in the repository: the capsule example of examples/capsule converted
+ * with `gsverse-convert examples/capsule/splats.ply examples/web/capsule.glb --mesh
+ * examples/capsule/mesh.obj --anchors compact` (tests/test_web_demo.py checks it is what that
+ * command writes). */
+export const DEFAULT_ASSET = path.join(REPO, 'examples', 'web', 'capsule.glb');
 const DEFAULT_PORT = 8123;
 
 /** Single files served under /vendor/ (import-map targets). */
@@ -170,7 +174,7 @@ async function main() {
     // under `npm run demo`, a relative path is relative to where npm was run (INIT_CWD)
     const asset = args.asset ? path.resolve(process.env.INIT_CWD || process.cwd(), args.asset) : DEFAULT_ASSET;
     if (!fs.existsSync(asset)) {
-        const hint = args.asset ? '' : ' (make it with the first command of the README)';
+        const hint = args.asset ? '' : ' (it ships with the repository: restore it with git checkout, or pass an asset)';
         process.stderr.write(`serve.mjs: ${asset}: no such file${hint}\n`);
         process.exit(1);
     }

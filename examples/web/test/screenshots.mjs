@@ -4,7 +4,7 @@
 //
 //   node examples/web/test/screenshots.mjs OUTDIR [--readme]
 //
-// Loads the demo with the shipped example (examples/capsule/anchored.glb) in test mode (fixed
+// Loads the demo with the shipped example (examples/web/capsule.glb) in test mode (fixed
 // front camera, black background, physics paused; scripted manipulations drive the soft body's
 // end caps kinematically and settle it with a fixed number of fixed steps, so the poses are
 // deterministic), takes screenshots and measures the rendered splats in them:
@@ -14,26 +14,22 @@
 //   - twist(+60 / -60) about the view axis: the front end turns, so the red-to-cyan colour axis
 //     of the splats turns with the twist's sign by 20..85 degrees, nothing blows up;
 //   - twist(90) about the long axis: silhouette kept, the held end unchanged, the turned end changed;
+//   - a .ply dropped on the page says to convert it with gsverse-convert first;
 //   - a refused asset (an anchor mesh reference that resolves to nothing) shows the AnchorError
 //     on the page and leaves the loaded asset in place.
 // PNGs and results.json go to OUTDIR; exit status 1 on any failure. With --readme the demo
 // mid-stretch is also written to examples/web/screenshot-stretch.png.
 
 import fs from 'node:fs';
-import os from 'node:os';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { startServer, DEFAULT_ASSET } from '../serve.mjs';
-import { decodePng } from './png.mjs';
 import { silhouette, meanDifference } from './measure.mjs';
+import { launch, stableShot } from './browser.mjs';
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
-const REPO = path.resolve(HERE, '..', '..', '..');
-const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
-const FLAGS = ['--headless', '--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
-    '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update', '--disable-sync', '--no-first-run'];
 
-/** @param {string} msg */
+/** @param {string} msg @returns {never} */
 function die(msg) {
     process.stderr.write(`screenshots: FAIL: ${msg}\n`);
     process.exit(1);
@@ -46,14 +42,15 @@ if (!outDir) {
     process.stderr.write('usage: screenshots.mjs OUTDIR [--readme]\n');
     process.exit(2);
 }
-if (!fs.existsSync(DEFAULT_ASSET)) die(`${DEFAULT_ASSET} is missing (make it with the first command of the README)`);
-if (!fs.existsSync(CHROMIUM)) die(`${CHROMIUM} not found (install chromium, or set CHROMIUM)`);
-let playwright;
+if (!fs.existsSync(DEFAULT_ASSET)) die(`${DEFAULT_ASSET} is missing (it ships with the repository)`);
+/** @type {Awaited<ReturnType<typeof launch>>} */
+let browser;
 try {
-    playwright = await import(path.join(REPO, 'plugins', 'web', 'node_modules', 'playwright-core', 'index.mjs'));
-} catch {
-    die('playwright-core is not installed: run npm ci in plugins/web');
+    browser = await launch();
+} catch (err) {
+    die(/** @type {Error} */ (err).message);
 }
+const context = browser.context;
 fs.mkdirSync(outDir, { recursive: true });
 
 /** @type {{name: string, ok: boolean, detail: string}[]} */
@@ -92,10 +89,6 @@ function colourAxis(img) {
 const angleDiff = (a, b) => ((a - b + 540) % 360) - 180;
 
 const server = await startServer({ port: 0 });
-const profile = fs.mkdtempSync(path.join(os.tmpdir(), 'gsverse-demo-'));
-const context = await playwright.chromium.launchPersistentContext(profile, {
-    executablePath: CHROMIUM, args: FLAGS, headless: true, viewport: { width: 800, height: 600 }, deviceScaleFactor: 1,
-});
 /** @type {string[]} */
 const pageErrors = [];
 let failed = false;
@@ -108,28 +101,8 @@ try {
     const info = await page.evaluate(() => /** @type {any} */ (window).gsverseDemo.ready);
     process.stdout.write(`demo: ${info.asset}, ${info.splats.anchored} anchored splats, backend ${info.backend}\n`);
 
-    /** The frame once the splats are drawn and stable: the engine sorts splats in a worker and
-     * may present a few frames before the first sorted draw, more so on a loaded machine; two
-     * consecutive captures with the same non-empty silhouette (or 60 s) end the wait.
-     * @param {string} name */
-    const shot = async (name) => {
-        const deadline = Date.now() + 60000;
-        /** @type {any} */
-        let prev = null;
-        for (;;) {
-            const png = await page.screenshot();
-            const img = decodePng(png);
-            const s = silhouette(img);
-            const stable = prev !== null && s.fraction > 0 && s.area === prev.area
-                && s.x.size === prev.x.size && s.y.size === prev.y.size;
-            if (stable || Date.now() > deadline) {
-                fs.writeFileSync(path.join(outDir, `${name}.png`), png);
-                return img;
-            }
-            prev = s;
-            await page.waitForTimeout(250);
-        }
-    };
+    /** The frame once the splats are drawn and stable (browser.mjs). @param {string} name */
+    const shot = (name) => stableShot(page, path.join(outDir, `${name}.png`));
     /** @param {string} expr @param {any[]} a */
     const call = (expr, ...a) => page.evaluate((/** @type {[string, any[]]} */ [e, x]) => /** @type {any} */ (window).gsverseDemo[e](...x), [expr, a]);
 
@@ -213,7 +186,19 @@ try {
             err ? `"${err.text}"` : 'no error shown');
         check('refused asset: previous asset kept', Array.isArray(outcome.extent), `extent ${JSON.stringify(outcome.extent?.map((/** @type {number} */ v) => +v.toFixed(3)))}`);
     }
-    const unexpected = pageErrors.filter((e) => !/broken-reference|UNRESOLVED_REFERENCE/.test(e));
+    // a splat file dropped on the page: it says to convert it first
+    const ply = await page.evaluate(async () => {
+        const demo = /** @type {any} */ (window).gsverseDemo;
+        try {
+            await demo.load(new TextEncoder().encode('ply\nformat binary_little_endian 1.0\n'), 'splats.ply');
+            return { loaded: true, error: demo.error() };
+        } catch {
+            return { loaded: false, error: demo.error(), extent: demo.extent() };
+        }
+    });
+    check('a dropped .ply says to convert it first', !ply.loaded && !!ply.error && /gsverse-convert splats\.ply splats\.glb/.test(ply.error.text) && Array.isArray(ply.extent),
+        ply.error ? `"${ply.error.text}"` : 'no error shown');
+    const unexpected = pageErrors.filter((e) => !/broken-reference|UNRESOLVED_REFERENCE|splats\.ply/.test(e));
     check('no unexpected page errors', unexpected.length === 0, unexpected.length ? unexpected.slice(0, 3).join(' | ') : 'none');
     await page.close();
 
@@ -231,9 +216,8 @@ try {
     process.stderr.write(`screenshots: FAIL: ${/** @type {Error} */ (err).stack || err}\n`);
     if (pageErrors.length) process.stderr.write(`page errors:\n  ${pageErrors.join('\n  ')}\n`);
 } finally {
-    await context.close();
+    await browser.close();
     await server.close();
-    fs.rmSync(profile, { recursive: true, force: true });
 }
 
 fs.writeFileSync(path.join(outDir, 'results.json'), JSON.stringify({ checks, pageErrors }, null, 2));
