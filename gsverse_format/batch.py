@@ -114,12 +114,15 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
 @dataclass(frozen=True)
 class AssetSpec:
     """One asset to convert: ``output`` is None until :func:`plan` names it; ``origin`` says
-    where it was named (``manifest.csv:3``, or the command line's argument)."""
+    where it was named (``manifest.csv:3``, or the command line's argument); ``position`` is
+    its place among the inputs, set by :func:`plan` (``-1``: not planned), which keeps the
+    report in input order when some assets are skipped."""
 
     input: str
     options: ConvertOptions
     output: str | None = None
     origin: str = ""
+    position: int = -1
 
 
 @dataclass(frozen=True)
@@ -321,7 +324,8 @@ def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite:
             src = os.path.abspath(s.input.rstrip("/\\") or s.input)
             rel = os.path.relpath(src, common) if common else os.path.basename(src)
             out = os.path.join(output_dir, os.path.splitext(rel)[0] + suffix)
-        named.append(dataclasses.replace(s, output=os.path.normpath(out)))
+        named.append(dataclasses.replace(s, output=os.path.normpath(out),
+                                         position=len(named)))
     seen: dict[str, AssetSpec] = {}
     for s in named:
         assert s.output is not None
@@ -516,9 +520,11 @@ def run_batch(specs: list[AssetSpec], output_dir: str, *, jobs: int | None = Non
               ) -> BatchReport:
     """Convert planned ``specs`` (:func:`plan`): ``jobs`` local processes (default: the CPU
     count; 1 converts in this process), or one task per asset on the Dask scheduler at
-    ``scheduler``. Results come back in the order of ``specs`` (then ``skipped``). A
-    Ctrl-C stops the batch: running conversions are interrupted (their temporary files
-    removed), pending ones never start, and the report says ``interrupted``."""
+    ``scheduler``. The report lists the assets in input order: converted and ``skipped`` ones
+    (both from :func:`plan`) where their inputs were (by :attr:`AssetSpec.position`; specs not
+    planned come first, in their order, then ``skipped``). A Ctrl-C stops the batch: running
+    conversions are interrupted (their temporary files removed), pending ones never start, and
+    the report says ``interrupted``."""
     start = time.perf_counter()
     progress = progress or Progress(enabled=False)
     jobs = max(1, jobs if jobs is not None else (os.cpu_count() or 1))
@@ -559,6 +565,20 @@ def run_batch(specs: list[AssetSpec], output_dir: str, *, jobs: int | None = Non
             result = AssetResult(t.input, t.output, "ok")  # written as the interrupt came
         report.assets.append(result or AssetResult(
             t.input, t.output, "interrupted", f"{t.input}: not converted (interrupted)"))
-    report.assets.extend(skipped)
+    report.assets = _in_input_order(report.assets, [s.position for s in specs], list(skipped))
     report.seconds = time.perf_counter() - start
     return report
+
+
+def _in_input_order(done: list[AssetResult], positions: list[int],
+                    skipped: list[AssetResult]) -> list[AssetResult]:
+    """``done`` (one result per spec, at ``positions`` among the inputs) and ``skipped`` (the
+    remaining positions, in order) merged in input order."""
+    if not skipped or any(p < 0 for p in positions):
+        return done + skipped
+    total = len(done) + len(skipped)
+    free = iter(sorted(set(range(total)) - set(positions)))
+    slots: dict[int, AssetResult] = dict(zip(positions, done))
+    for result in skipped:
+        slots[next(free, total + len(slots))] = result
+    return [slots[k] for k in sorted(slots)]

@@ -168,6 +168,25 @@ def test_existing_outputs_refused_overwritten_or_skipped(library, tmp_path, caps
     assert read_gltf(out / "capsule.glb").splat_count() == 3000
 
 
+def test_json_lists_assets_in_input_order_with_skip_existing(tmp_path, capsys):
+    """A skipped asset keeps its place: the report follows the inputs, not the work done."""
+    inputs = []
+    for name in ("a", "b", "c", "d"):
+        shutil.copy(CAPSULE / "splats.ply", tmp_path / f"{name}.ply")
+        inputs.append(str(tmp_path / f"{name}.ply"))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "b.glb").write_bytes(b"old")
+    (out / "d.glb").write_bytes(b"old")
+    assert main([*inputs, "--output-dir", str(out), "--plain", "--skip-existing", "-j", "1",
+                 "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [Path(a["input"]).name for a in report["assets"]] == ["a.ply", "b.ply", "c.ply",
+                                                                 "d.ply"]
+    assert [a["status"] for a in report["assets"]] == ["ok", "skipped", "ok", "skipped"]
+    assert (out / "b.glb").read_bytes() == b"old"
+
+
 class _Tty(io.StringIO):
     def isatty(self) -> bool:
         return True

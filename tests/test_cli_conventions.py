@@ -467,3 +467,27 @@ def test_real_log_scale_fixture_is_refused(shared_data, tmp_path, capsys):
     out = tmp_path / "out.glb"
     code, lines = _convert(capsys, path, out)
     _assert_refused(code, lines, path, out, "negative scales")
+
+
+# ---------------------------------------------------------------------------- --mesh mistakes
+
+def test_a_splat_ply_given_as_mesh_is_a_point_cloud(tmp_path, capsys):
+    """The splats of another capture given as --mesh (vertices, no faces): one line naming
+    that file, saying it is a point cloud of splats and not a triangle mesh, exit 1."""
+    splats = tmp_path / "splats.ply"
+    other = tmp_path / "other_splats.ply"
+    write_splat_ply(random_splats(40, 1, sh_degree=0), splats)
+    write_splat_ply(random_splats(25, 2, sh_degree=1), other)
+    out = tmp_path / "out.glb"
+    code, lines = _convert(capsys, splats, out, "--mesh", other)
+    assert code == 1 and len(lines) == 1 and "Traceback" not in lines[0], lines
+    assert lines[0].startswith(f"{PREFIX}{other}: is a point cloud of 25 Gaussian splats")
+    assert "not a triangle mesh" in lines[0]
+    assert not out.exists()
+    # a plain point cloud (x, y, z only) is named as such
+    cloud = tmp_path / "cloud.ply"
+    cloud.write_text("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                     "property float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n")
+    code, lines = _convert(capsys, splats, out, "--mesh", cloud)
+    assert code == 1 and lines == [f"{PREFIX}{cloud}: is a point cloud of 2 vertices (no 'face' "
+                                   "element), not a triangle mesh"]

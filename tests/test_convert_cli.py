@@ -16,7 +16,7 @@ from gsverse_format.cli.convert import main
 from gsverse_format.examples import make_example
 from gsverse_format.io.gltf import read_gltf
 from gsverse_format.io.ply import read_splat_ply, write_splat_ply
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 from gsverse_format.transform import PLY_TO_GLTF, rotate_splats
 
 from helpers import max_rel_cov_error, random_splats
@@ -163,9 +163,15 @@ def _assert_clean_failure(proc, *names, code=1):
         assert name in lines[0]
 
 
-def test_missing_input(tmp_path):
+def test_missing_input(example, tmp_path):
+    """A missing input (or mesh) is bad input: exit 1, one line naming it, as the README
+    says."""
     proc = run_cli(str(tmp_path / "nope.ply"), str(tmp_path / "out.glb"))
-    _assert_clean_failure(proc, "nope.ply", code=2)
+    _assert_clean_failure(proc, "nope.ply", "file not found", code=1)
+    assert not (tmp_path / "out.glb").exists()
+    ply, _ = example
+    proc = run_cli(ply, str(tmp_path / "out.glb"), "--mesh", str(tmp_path / "nope.obj"))
+    _assert_clean_failure(proc, "nope.obj", "file not found", code=1)
     assert not (tmp_path / "out.glb").exists()
 
 
@@ -316,4 +322,27 @@ def test_single_and_batch_usage_errors(example, tmp_path):
     for args in ([ply], [ply, str(tmp_path / "a.glb"), str(tmp_path / "b.glb")],
                  [ply, str(tmp_path / "a.glb"), "--jobs", "2"]):
         proc = run_cli(*args)
-        assert proc.returncode == 2 and "usage:" in proc.stderr and "Traceback" not in proc.stderr
+        _assert_clean_failure(proc, code=2)
+    assert not os.listdir(tmp_path)
+
+
+def test_dash_o_is_the_output_file_or_a_batch_folder(example, tmp_path):
+    """-o means the output, as in every gsverse command: a file name is the output file
+    (never a folder of that name), a folder makes a batch, anything else is refused."""
+    ply, obj = example
+    proc = run_cli(ply, "-o", str(tmp_path / "out.glb"), "--mesh", obj, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "out.glb").is_file() and read_gltf(tmp_path / "out.glb").anchored
+    proc = run_cli(ply, "-o", str(tmp_path / "out.glb"), "--mesh", obj)   # exists, no -w
+    _assert_clean_failure(proc, "out.glb", "--overwrite", code=2)
+    proc = run_cli(ply, "-o", str(tmp_path / "batch"), "--plain", "-q")   # no suffix: a folder
+    assert proc.returncode == 0 and os.listdir(tmp_path / "batch") == ["splats.glb"]
+    for args, needle in (([ply, ply, "-o", str(tmp_path / "two.glb")], "--output-dir DIR"),
+                         ([ply, "-o", str(tmp_path / "out.v2")], "--output-dir"),
+                         ([ply, str(tmp_path / "a.glb"), "-o", str(tmp_path / "b.glb")],
+                          "IN -o OUT"),
+                         ([ply, "-o", str(tmp_path / "c.glb"), "--output-dir",
+                           str(tmp_path / "d")], "not both")):
+        proc = run_cli(*args)
+        _assert_clean_failure(proc, needle, code=2)
+    assert sorted(os.listdir(tmp_path)) == ["batch", "out.glb"]

@@ -1,10 +1,12 @@
-"""The splat/mesh fit check (gsverse_format.fit) on generated splats around a generated mesh."""
+"""The splat/mesh fit check (gsverse_format.fit): generated splats around a generated mesh, and
+the real files of ../shared/data (skipped when absent) that calibrate its thresholds."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from gsverse_format.fit import MIN_EXTENT_RATIO, NEAR_FRACTION, assess_fit
+from gsverse_format.fit import (AROUND_FRACTION, MIN_AROUND_NEAR_SHARE, MIN_EXTENT_RATIO,
+                                MIN_NEAR_SHARE, MIN_SPAN_RATIO, NEAR_FRACTION, assess_fit)
 from gsverse_format.nearest import nearest_triangles
 
 
@@ -79,3 +81,110 @@ def test_floaters_do_not_make_a_scale_mismatch():
     means = _splats_on(v, f)
     means[:5] = 1e4            # five floaters far away
     assert _fit(means, v, f).ok
+
+
+def _sphere_splats(radius, n=3000, seed=1):
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(n, 3))
+    return radius * d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _quad(lo, hi):
+    """A square in the plane z = 0 from (lo, lo) to (hi, hi): two triangles."""
+    v = np.array([[lo, lo, 0], [hi, lo, 0], [hi, hi, 0], [lo, hi, 0]], float)
+    return v, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def test_splats_on_a_small_part_of_a_larger_mesh_warn():
+    """Splats on a 2 x 2 patch of a 10 x 10 floor (another object's mesh, a whole scene's):
+    they lie on it, but cover a small part of it."""
+    rng = np.random.default_rng(2)
+    means = np.column_stack([rng.uniform(0, 2, (2000, 2)), rng.normal(0, 0.005, 2000)])
+    v, f = _quad(-4, 6)
+    r = _fit(means, v, f)
+    assert not r.ok and r.near_share > 0.99
+    assert MIN_EXTENT_RATIO < r.splat_diagonal / r.mesh_diagonal < MIN_SPAN_RATIO
+    assert "5.1x larger than the splats" in r.problem and "small part" in r.problem
+    assert "belongs to these splats" in r.hint
+    v, f = _quad(-1, 3)      # twice as large as the patch: a mesh reaching beyond it passes
+    assert _fit(means, v, f).ok
+
+
+def test_another_object_in_the_same_place_warns():
+    """Splats of a ball inside a box mesh of about its size: they fill the box, but few lie
+    on its faces (as an unrelated bunny under a donut)."""
+    v, f = _box_mesh()
+    means = _sphere_splats(0.35)
+    r = _fit(means, v, f)
+    assert not r.ok and MIN_NEAR_SHARE < r.near_share < MIN_AROUND_NEAR_SHARE
+    assert r.around_near_share == pytest.approx(r.near_share)   # every splat is around it
+    assert "splats around the anchor mesh" in r.problem and "surface" in r.hint
+    assert r.as_dict()["around_near_share"] == r.around_near_share
+
+
+def test_the_share_around_the_mesh_ignores_far_splats():
+    """The same ball in a room: the room's splats are not around the mesh, the verdict stays."""
+    v, f = _box_mesh()
+    rng = np.random.default_rng(3)
+    room = rng.uniform(-20, 20, (20000, 3))
+    room = room[np.any(np.abs(room) > 1 + 2 * AROUND_FRACTION * 2.1, axis=1)]
+    r = _fit(np.concatenate([_sphere_splats(0.35), room]), v, f)
+    assert not r.ok and "splats around the anchor mesh" in r.problem
+    assert r.near_share < 0.05 < r.around_near_share < MIN_AROUND_NEAR_SHARE
+
+
+# ---------------------------------------------------------------------------- real files
+
+def _real_fit(src, out, **options):
+    import warnings
+
+    import gsverse_format as gv
+    from gsverse_format.fit import MeshFitWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", MeshFitWarning)
+        summary = gv.convert(src, out, **options)
+    (entry,) = summary.fit
+    return entry
+
+
+def _unrelated_pairs(data):
+    splats = sorted((data / "3dgs").glob("*.ply"))
+    meshes = sorted([*(data / "meshes").glob("*.ply"), *(data / "meshes").glob("*.glb"),
+                     *(data / "meshes").glob("*.gltf"), *(data / "trellis").glob("*.glb")])
+    return [(s, m) for s in splats for m in meshes]
+
+
+def test_every_unrelated_real_pair_warns(shared_data, tmp_path):
+    """Every 3DGS capture of ../shared/data against every mesh there (none is the capture's):
+    the calibration data of fit.py's thresholds."""
+    pairs = _unrelated_pairs(shared_data)
+    assert len(pairs) >= 9
+    passed = []
+    for i, (splats, mesh) in enumerate(pairs):
+        entry = _real_fit(splats, tmp_path / f"{i}.glb", mesh=str(mesh))
+        if entry["ok"]:
+            passed.append((splats.name, mesh.name, entry["near_share"]))
+    assert not passed, passed
+
+
+def test_the_bunny_under_the_donut_warns_in_the_validator_too(shared_data, tmp_path):
+    from gsverse_format.codes import Code
+    from gsverse_format.validators.validate import validate_file
+
+    entry = _real_fit(shared_data / "3dgs" / "donut_mipsplatting_sh0_fused.ply", tmp_path / "o.glb",
+                      mesh=str(shared_data / "meshes" / "trimesh_bunny_stanford_res2.ply"))
+    assert not entry["ok"] and 0.05 < entry["near_share"] < 0.2       # about 89% not near
+    assert entry["around_near_share"] < MIN_AROUND_NEAR_SHARE
+    found = [f for f in validate_file(tmp_path / "o.glb").findings
+             if f.code == Code.ANCHOR_MESH_MISFIT]
+    assert len(found) == 1 and "around the anchor mesh" in found[0].message
+
+
+@pytest.mark.parametrize("name", ["donut_mipsplatting_sh0_fused.ply",
+                                  "404gen_tmp_model_dreamgaussian_sh0.ply"])
+def test_meshes_reconstructed_from_real_captures_fit(shared_data, tmp_path, name):
+    entry = _real_fit(shared_data / "3dgs" / name, tmp_path / "o.glb", reconstruct_faces=300,
+                      strict=True)
+    assert entry["ok"] and entry["around_near_share"] > 0.95
+    assert entry["splat_diagonal"] / entry["mesh_diagonal"] > MIN_SPAN_RATIO

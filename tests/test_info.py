@@ -126,8 +126,8 @@ def test_bad_input_is_one_line_and_exit_1(tmp_path, capsys, content, suffix):
     assert error["error"]["message"] == lines[0][len("gsverse-info: error: "):]
 
 
-def test_missing_and_unknown_files_are_usage_errors(tmp_path, capsys):
-    assert main([str(tmp_path / "none.glb")]) == 2
+def test_missing_input_is_bad_input_and_unknown_formats_are_usage_errors(tmp_path, capsys):
+    assert main([str(tmp_path / "none.glb")]) == 1
     assert "none.glb: file not found" in capsys.readouterr().err
     (tmp_path / "x.txt").write_text("hello")
     assert main([str(tmp_path / "x.txt")]) == 2

@@ -303,13 +303,15 @@ def test_vat_from_the_command_line(sphere_asset, tmp_path):
     path, asset = sphere_asset
     rest = asset.anchored[0].anchoring.mesh.vertices
     vat = tmp_path / "twist.exr"
-    assert main([str(path), "--deform", "twist=60", "--times", "0", "1", "--vat", str(vat),
-                 "--vat-width", "7", "--vat-half", "-q"]) == 0
+    # a quick look is one pose: one frame (t = 0, by default)
+    assert main([str(path), "--deform", "twist=60", "--vat", str(vat), "--vat-width", "7",
+                 "--vat-half", "-q"]) == 0
     cache = read_vat(vat)
     want = QuickLook("twist", 60.0).apply(rest, rest)
-    np.testing.assert_allclose(cache.vertices[1], want, atol=2e-3)
+    assert len(cache.vertices) == 1
+    np.testing.assert_allclose(cache.vertices[0], want, atol=2e-3)
     # the VAT drives a pose again: same splats as the quick look itself
-    assert main([str(path), "--source", str(vat), "--times", "1", "-o", str(tmp_path / "o"),
+    assert main([str(path), "--source", str(vat), "--times", "0", "-o", str(tmp_path / "o"),
                  "--format", "glb", "-q"]) == 0
     got = gv.read(tmp_path / "o" / "sphere_f0000.glb").primitives[0].splats.means
     np.testing.assert_allclose(got, gv.remap(asset.anchored[0].anchoring, want).means,
@@ -342,24 +344,81 @@ def test_quick_looks(sphere_asset, tmp_path):
 
 # ---------------------------------------------------------------------------- command line
 
+def _usd_positions(path) -> list[np.ndarray]:
+    """The splat positions of the first splat prim of a USD file, at each time sample."""
+    from pxr import Usd, UsdVol
+
+    stage = Usd.Stage.Open(str(path))
+    prim = next(p for p in stage.Traverse() if p.IsA(UsdVol.ParticleField3DGaussianSplat))
+    attr = UsdVol.ParticleField3DGaussianSplat(prim).GetPositionsAttr()
+    return [np.asarray(attr.Get(t)) for t in attr.GetTimeSamples()]
+
+
 def test_ply_and_usd_outputs(sphere_asset, tmp_path):
+    pytest.importorskip("pxr")
     path, asset = sphere_asset
-    assert main([str(path), "--deform", "bend=30", "--fps", "2", "--duration", "1",
-                 "--format", "usd", "-o", str(tmp_path / "u"), "-q"]) == 0
-    usd = tmp_path / "u" / "sphere.usda"
-    assert usd.is_file() and "timeSamples" in usd.read_text()
-    assert main([str(path), "--deform", "bend=30", "--times", "0", "-o", str(tmp_path / "p"),
-                 "-q"]) == 0
-    ply = gv.read(tmp_path / "p" / "sphere_f0000.ply")      # 3DGS PLY, read back into glTF
+    looks = ["--deform", "bend=30", "--deform", "shake=0.01"]    # shake: a new pose each time
+    # the older spelling: --format usd into a folder writes <asset>.usda
+    assert main([str(path), *looks, "--fps", "2", "--duration", "1", "--format", "usd",
+                 "-o", str(tmp_path / "u"), "-q"]) == 0
+    usda = tmp_path / "u" / "sphere.usda"
+    assert usda.is_file() and "timeSamples" in usda.read_text()
+    # a .usdc OUT is a binary crate with the same time samples; --to picks it for a folder
+    assert main([str(path), str(tmp_path / "posed.usdc"), *looks, "--fps", "2", "--duration",
+                 "1", "-q"]) == 0
+    assert main([str(path), *looks, "--fps", "2", "--duration", "1", "--to", "usdc",
+                 "--output-dir", str(tmp_path / "c"), "-q"]) == 0
+    want = _usd_positions(usda)
+    assert len(want) == 3 and not np.array_equal(want[1], want[2])
+    for crate in (tmp_path / "posed.usdc", tmp_path / "c" / "sphere.usdc"):
+        assert crate.read_bytes()[:8] == b"PXR-USDC"
+        got = _usd_positions(crate)
+        assert len(got) == 3 and all(np.array_equal(a, b) for a, b in zip(got, want))
+    # the suffix decides; a --to that disagrees with it is bad usage, nothing written
+    assert main([str(path), str(tmp_path / "x.usdc"), *looks, "--to", "usda", "--times", "0",
+                 "1"]) == 2
+    assert not (tmp_path / "x.usdc").exists()
+    # a quick look alone: one time (t = 0) by default, written to the file OUT names
+    assert main([str(path), str(tmp_path / "look.ply"), "--deform", "bend=30", "-q"]) == 0
+    ply = gv.read(tmp_path / "look.ply")      # 3DGS PLY, read back into glTF
     rest = asset.anchored[0].anchoring.mesh.vertices
     want = gv.remap(asset.anchored[0].anchoring, QuickLook("bend", 30).apply(rest, rest)).means
     np.testing.assert_allclose(ply.primitives[0].splats.means, want, atol=1e-5)
+    assert main([str(path), "--deform", "bend=30", "--times", "0", "-o", str(tmp_path / "p"),
+                 "-q"]) == 0
+    ply = gv.read(tmp_path / "p" / "sphere_f0000.ply")
+    np.testing.assert_allclose(ply.primitives[0].splats.means, want, atol=1e-5)
+    assert sorted(os.listdir(tmp_path / "p")) == ["sphere_f0000.ply"]
+
+
+def test_quick_looks_never_write_identical_frames(sphere_asset, tmp_path, capsys):
+    """Quick looks alone are one pose: several times of them are refused (they would be the
+    same frame), unless a look changes with time (shake); a time given twice is refused."""
+    path, _ = sphere_asset
+    for when in (["--times", "0", "1"], ["--fps", "4", "--duration", "1"]):
+        assert main([str(path), str(tmp_path / "o"), "--deform", "twist=45", *when]) == 2
+        (line,) = capsys.readouterr().err.strip().splitlines()
+        assert "identical frames" in line and "shake" in line
+        assert not (tmp_path / "o").exists()
+    assert main([str(path), str(tmp_path / "s"), "--deform", "twist=45", "--deform",
+                 "shake=0.02", "--times", "0", "1", "--to", "glb", "-q"]) == 0
+    frames = [gv.read(tmp_path / "s" / f"sphere_f000{i}.glb").primitives[0].splats.means
+              for i in range(2)]
+    assert not np.allclose(frames[0], frames[1])
+    assert main([str(path), str(tmp_path / "t"), "--deform", "shake=0.02", "--times", "1",
+                 "1"]) == 2
+    assert "more than once" in capsys.readouterr().err
+    # several posed files named after a file OUT: OUT_fNNNN beside it
+    assert main([str(path), str(tmp_path / "shaken.ply"), "--deform", "shake=0.02",
+                 "--times", "0", "0.5", "1", "-q"]) == 0
+    assert sorted(p.name for p in tmp_path.glob("shaken*")) == \
+        ["shaken_f0000.ply", "shaken_f0001.ply", "shaken_f0002.ply"]
 
 
 def test_command_line_errors(sphere_asset, tmp_path, capsys):
     path, _ = sphere_asset
     out = tmp_path / "o"
-    base = [str(path), "--deform", "twist=10"]
+    base = [str(path), "--deform", "twist=10", "--deform", "shake=0.01"]
     assert main(base + ["--times", "0"]) == 2                       # nothing to write
     assert "nothing to write" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exc:

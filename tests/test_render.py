@@ -19,7 +19,7 @@ from gsverse_format.render.raster import Image, project_fast, render_gaussians
 from gsverse_format.sh import sh_basis
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE = ROOT / "examples" / "capsule" / "anchored.glb"
+EXAMPLE = ROOT / "examples" / "web" / "capsule.glb"   # shipped: the capsule example, converted
 
 
 def _random(n, seed=0, degree=3):
@@ -149,7 +149,6 @@ def test_camera_spec():
             parse_camera(bad, width=8, height=8)
 
 
-@pytest.mark.skipif(not EXAMPLE.is_file(), reason="no examples/capsule/anchored.glb")
 def test_cli_png_exr_sheet_turntable_and_errors(tmp_path, capsys):
     out = tmp_path / "a.png"
     assert render_main([str(EXAMPLE), "-o", str(out), "--size", "96x64", "-q"]) == 0
@@ -194,7 +193,7 @@ CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
 _web_missing = (not shutil.which("node") and "no node") or \
     (not (WEB / "node_modules" / "playcanvas").is_dir() and "no plugins/web/node_modules (npm ci)") or \
     (not os.path.exists(CHROMIUM) and f"no Chromium at {CHROMIUM}") or \
-    (not EXAMPLE.is_file() and "no examples/capsule/anchored.glb")
+    (not EXAMPLE.is_file() and "no examples/web/capsule.glb")
 
 #: PSNR (dB) gsverse-render must reach against PlayCanvas on the same camera. Measured 34.7 dB
 #: (rest) and 34.8 dB (bend 60°) at 256x256 with the PlayCanvas footprint settings below. The
@@ -287,3 +286,65 @@ def test_time_samples_the_assets_own_animation(tmp_path):
     assert t.sum() > 20
     np.testing.assert_allclose(t, p, atol=2e-3)
     assert np.abs(t - r).max() > 0.2            # the pose at 0.75 s is not the rest pose
+
+
+# ------------------------------------------------------------------ the sheet's one camera
+
+@pytest.fixture(scope="module")
+def capsule_glb(tmp_path_factory):
+    """The example's splats anchored to its mesh, built here (no shipped GLB needed)."""
+    import gsverse_format as gv
+
+    path = tmp_path_factory.mktemp("capsule") / "capsule.glb"
+    capsule = ROOT / "examples" / "capsule"
+    gv.convert(capsule / "splats.ply", path, mesh=str(capsule / "mesh.obj"))
+    return path
+
+
+def _inside(cam, means) -> float:
+    """The share of ``means`` the camera sees inside its picture."""
+    uv, z = cam.project_points(means)
+    return float(np.mean((z > 0) & np.all((uv >= 0) & (uv <= [cam.width, cam.height]), axis=1)))
+
+
+def test_the_sheet_camera_frames_rest_and_posed(capsule_glb, tmp_path, capsys):
+    """A pose that moves the asset away from its rest place (here 2.5 units along x): the
+    sheet's one camera keeps both pictures whole; a camera framing the posed asset alone
+    (what --sheet used) sees almost none of the rest."""
+    import gsverse_format as gv
+    from PIL import Image as PILImage
+    from gsverse_format.render.scene import auto_camera, gaussians, sheet_camera, split_pose
+
+    asset = gv.read(capsule_glb)
+    moved = asset.anchored[0].anchoring.mesh.vertices.astype(np.float64) + [2.5, 0.0, 0.0]
+    poses = split_pose(asset, moved)
+    rest, posed = gaussians(asset, None).means, gaussians(asset, poses).means
+    cam = sheet_camera(asset, poses, 48, 48)
+    assert _inside(cam, rest) == 1.0 and _inside(cam, posed) == 1.0
+    assert _inside(auto_camera(gaussians(asset, poses), 48, 48), rest) < 0.5
+    # the command line: every panel drawn whole (nothing on its border), the camera reported
+    np.save(tmp_path / "moved.npy", moved)
+    out = tmp_path / "sheet.png"
+    assert render_main([str(capsule_glb), str(out), "--pose", str(tmp_path / "moved.npy"),
+                        "--sheet", "--size", "48x48", "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(summary["camera"]["eye"], cam.eye)
+    px = np.asarray(PILImage.open(out))[..., :3].astype(int)
+    assert px.shape == (48, 144, 3)
+    for k in range(3):
+        panel = px[:, 48 * k:48 * (k + 1)].max(axis=-1)
+        assert (panel > 20).sum() > 100, k                                  # drawn
+        border = np.concatenate([panel[0], panel[-1], panel[:, 0], panel[:, -1]])
+        assert border.max() <= 20, k                                        # not cut
+
+
+def test_render_takes_out_as_argument_or_option(capsule_glb, tmp_path, capsys):
+    a, b = tmp_path / "a.png", tmp_path / "b.png"
+    assert render_main([str(capsule_glb), str(a), "--size", "24x24", "-q"]) == 0
+    assert render_main([str(capsule_glb), "-o", str(b), "--size", "24x24", "-q"]) == 0
+    assert a.read_bytes() == b.read_bytes()
+    capsys.readouterr()
+    assert render_main([str(capsule_glb), str(a), "-o", str(b)]) == 2       # two outputs
+    assert "once" in capsys.readouterr().err
+    assert render_main([str(capsule_glb)]) == 2                              # none
+    assert "OUT" in capsys.readouterr().err

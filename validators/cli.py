@@ -1,8 +1,15 @@
 """``gsverse-validate FILE...``: validate glTF/GLB and USD splat assets.
 
+The flags shared by every command (``--json``, ``-q``, ``--version``) are those of
+:mod:`gsverse_format.cli.grammar`: ``--json`` is ``--format json`` (the report, or a usage
+error, as JSON on standard output), ``-q`` prints one verdict line per file. Bad usage is one
+line on standard error, exit status 2.
+
 Exit status: 0 when no file has errors, 1 when some file has errors, 2 for bad usage, a file
-that could not be read at all, or a closed standard output (``>&-``: the report has nowhere to
-go; one line on stderr, nothing validated); 141 when the reader of standard output goes away
+that could not be read at all (missing, not glTF or USD, unreadable: also one line
+``gsverse-validate: error: FILE: <cause>`` on standard error, beside its report), or a closed
+standard output (``>&-``: the report has nowhere to go; one line on stderr, nothing
+validated); 141 when the reader of standard output goes away
 (``| head -1``), as if killed by SIGPIPE, without a message; 130 on Ctrl-C, 143 on SIGTERM, 129
 on SIGHUP (a USD file being checked in a child process: the child is stopped and its
 temporary folder removed). Severities can be raised, lowered or ignored per code
@@ -21,9 +28,9 @@ import signal
 import sys
 
 from gsverse_format.textsafe import escape
-from gsverse_format.version import __version__
 from gsverse_format.cli.boundary import (EXIT_SIGPIPE, Interrupted, interrupting_signals,
-                                         quiet_broken_stdout)
+                                         json_error, parse_args, quiet_broken_stdout)
+from gsverse_format.cli.grammar import Parser, add_json, add_quiet, add_version
 from gsverse_format.codes import Code
 
 from .container import Options
@@ -59,7 +66,7 @@ def _count(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog=VALIDATOR_NAME,
         description="Validate mesh-anchored Gaussian splat assets (.glb, .gltf; .usda, .usdc, "
                     ".usd, .usdz): container, KHR_gaussian_splatting, "
@@ -67,10 +74,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "rest-pose consistency. Exit status 0: no errors, 1: errors, 2: bad usage "
                     "or unreadable file.")
     p.add_argument("files", nargs="*", metavar="FILE", help=".glb, .gltf or USD files")
-    p.add_argument("--format", choices=("text", "json"), default="text",
-                   help="report format (default: text)")
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="text format: only one summary line per file")
+    p.add_argument("--format", choices=("text", "json"), default=None,
+                   help="report format (default: text; json is --json)")
+    add_json(p, " (the same as --format json)")
+    add_quiet(p, " (here: one verdict line per file, without the findings)")
     p.add_argument("--severity", action="append", default=[], metavar="CODE=LEVEL",
                    help="override a code's severity: error, warning, info, hint or ignore "
                         "(repeatable)")
@@ -91,7 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="do not read primitives with more than N splats (default: no cap)")
     p.add_argument("--list-codes", action="store_true",
                    help="print every issue code with its default severity and exit")
-    p.add_argument("--version", action="version", version=f"{VALIDATOR_NAME} {__version__}")
+    add_version(p, VALIDATOR_NAME)
     return p
 
 
@@ -175,33 +182,49 @@ def _say(message: str) -> None:
         sys.stderr.write(f"{VALIDATOR_NAME}: {escape(' '.join(message.split()))}\n")
 
 
+def _usage(err: _Usage, as_json: bool) -> int:
+    """A usage error found after parsing: one line on stderr (with ``--json`` also the JSON
+    error object on stdout, as every command prints it); exit status 2."""
+    sys.stderr.write(f"{VALIDATOR_NAME}: error: {escape(' '.join(str(err).split()))}\n")
+    if as_json and sys.stdout is not None:
+        sys.stdout.write(json.dumps(json_error("usage", str(err), None, 2), indent=2) + "\n")
+    return 2
+
+
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parse_args(parser, argv)
     except SystemExit as exc:  # argparse exits 2 on bad usage, 0 on --help/--version
         return int(exc.code or 0)
     out = sys.stdout
     if out is None:
         _say("error: standard output is closed: the report has nowhere to go")
         return 2
+    if args.json and args.format == "text":
+        return _usage(_Usage("--json and --format text disagree: --json is --format json"),
+                      True)
+    as_json = args.json or args.format == "json"
     if args.list_codes:
-        out.write(render_catalogue(as_json=args.format == "json"))
+        out.write(render_catalogue(as_json=as_json))
         return 0
     try:
         if not args.files:
             raise _Usage("no files given")
         overrides, max_issues = _overrides(args)
     except _Usage as err:
-        sys.stderr.write(f"{VALIDATOR_NAME}: error: {err}\n")
-        return 2
+        return _usage(err, as_json)
     options = Options(max_examples=args.max_examples, max_splats=args.max_splats,
                       max_data_uri_bytes=args.max_data_uri_bytes)
     if args.max_bytes is not None:
         options.max_bytes = args.max_bytes
     reports = [validate_file(path, options, overrides=overrides, max_issues=max_issues)
                for path in args.files]
-    if args.format == "json":
+    for report in reports:
+        if report.issues.unreadable:    # the report says why too; stderr names the file
+            fatal = next((f for f in report.findings if f.severity == Severity.ERROR), None)
+            _say(f"error: {report.path}: {fatal.message if fatal else 'cannot be read'}")
+    if as_json:
         out.write(render_json(reports))
     else:
         out.write(render_text(reports, quiet=args.quiet))

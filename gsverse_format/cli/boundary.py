@@ -30,7 +30,7 @@ import threading
 import warnings
 from typing import Any, Callable, Iterator
 
-from ..atomic import WRITE_ERRNOS, discard_temporaries
+from ..atomic import WRITE_ERRNOS, discard_temporaries, outputs_written
 from ..errors import GsverseError, UsageError
 from ..progress import Progress, silenced_warnings
 from ..textsafe import escape
@@ -156,7 +156,13 @@ def run_command(prog: str, label: str, progress: Progress, work: Callable[[], in
     except KeyboardInterrupt as exc:
         discard_temporaries()
         signum = exc.signum if isinstance(exc, Interrupted) else signal.SIGINT
-        message, status, kind = interrupted, 128 + signum, "interrupted"
+        written = outputs_written()
+        if written:   # the interruption came after an output was complete: say so, not "none"
+            message = f"interrupted; {escape(written[-1])} was written" + (
+                f" (and {len(written) - 1} more)" if len(written) > 1 else "")
+        else:
+            message = interrupted
+        status, kind = 128 + signum, "interrupted"
     except OSError as exc:
         text = _os_message(exc)
         if text is None:

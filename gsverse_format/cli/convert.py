@@ -1,13 +1,16 @@
 """``gsverse-convert``: splats from 3DGS, SuGaR, TRELLIS, GaMeS or KHR glTF -> anchored GLB.
 
-One file: ``gsverse-convert IN OUT``; many: ``gsverse-convert IN... --output-dir DIR``
-(:mod:`gsverse_format.batch`, local processes or ``--scheduler`` on Dask).
+One file: ``gsverse-convert IN OUT`` (or ``IN -o OUT``); many: ``gsverse-convert IN...
+--output-dir DIR`` (or ``-o DIR`` when DIR is plainly a folder; :mod:`gsverse_format.batch`,
+local processes or ``--scheduler`` on Dask). The flags shared by every command (``-o``,
+``-w``, ``-q``, ``--json``, ``--version``) are those of :mod:`gsverse_format.cli.grammar`.
 
-Exit codes: 0 success, 1 bad input, an output the system refuses to write, or a failed
-conversion (in a batch: any asset failed), 2 usage error, 130 interrupted (143 SIGTERM, 129
-SIGHUP: handled like Ctrl-C, no output or temporary file left), 141 standard output closed by
-its reader (:mod:`gsverse_format.cli.boundary`). Errors are one line on stderr (``gsverse-convert: error: <file>:
-<cause>``), never a traceback.
+Exit codes: 0 success, 1 bad input (a missing or unreadable input included), an output the
+system refuses to write, or a failed conversion (in a batch: any asset failed), 2 usage error
+(an existing output without ``-w`` included), 130 interrupted (143 SIGTERM, 129 SIGHUP: handled
+like Ctrl-C, no output or temporary file left), 141 standard output closed by its reader
+(:mod:`gsverse_format.cli.boundary`). Errors are one line on stderr (``gsverse-convert: error:
+<file>: <cause>``), never a traceback.
 """
 from __future__ import annotations
 
@@ -20,12 +23,13 @@ import tempfile
 from typing import IO
 
 from ..textsafe import escape, safe_line
-from ..version import __version__
 from ..converters import SOURCES
 from ..pipeline import ConvertOptions, ConvertSummary, convert
 from ..errors import GsverseError, OutputError, UsageError
 from ..progress import Progress
 from .boundary import closed_stdout_error, parse_args, run_command
+from .grammar import (Parser, add_json, add_output, add_overwrite, add_quiet, add_version,
+                      output_kind, require_input)
 
 PROG = "gsverse-convert"
 #: ``--to`` choices (output suffixes without the dot) and those that can go to standard output.
@@ -35,10 +39,18 @@ STDOUT_FORMATS = ("glb", "ply")
 EPILOG = """\
 examples:
   gsverse-convert splats.ply anchored.glb --mesh mesh.obj
+  gsverse-convert splats.ply -o anchored.glb --mesh mesh.obj     # the same
   gsverse-convert scans/*.ply --output-dir out/ --plain          # many files, all CPUs
   gsverse-convert 'library/**/*.ply' manifest.csv -o out/ -j 8   # quoted glob, manifest
   gsverse-convert assets.json -o out/ --scheduler tcp://host:8786   # on a Dask cluster
   cat splats.ply | gsverse-convert - - --to glb --plain > out.glb
+
+-o PATH:
+  the output, as in every gsverse command. One input: -o OUT is OUT (a file name ending in
+  .glb, .gltf, .ply, .usda, .usdc, .usd or .usdz, or '-'). A folder (one that exists, a path
+  ending in '/', or a name without a suffix) makes a batch: -o DIR is --output-dir DIR. Any
+  other name is refused (exit 2): a file name never becomes a folder. Several inputs need a
+  folder: -o out.glb with several inputs is refused too.
 
 existing outputs:
   like splat-transform, an existing output is never replaced unless -w/--overwrite is given
@@ -46,7 +58,7 @@ existing outputs:
   keeps existing outputs and converts the rest (resuming an interrupted batch: outputs are
   written atomically, so an existing output is a complete one).
 
-batch (--output-dir DIR):
+batch (--output-dir DIR, or -o DIR):
   inputs are files or folders, glob patterns (*, ?, [..], ** for any depth; quote them for
   large libraries) and manifests (.csv or .json). Each output is DIR/<the input's path
   relative to the inputs' common folder> with the --to suffix (default glb), or the
@@ -116,11 +128,12 @@ quiet:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog=PROG,
         description="Convert Gaussian splats to a mesh-anchored glTF asset "
                     "(KHR_gaussian_splatting + GSVERSE_gaussian_splatting_mesh_anchor).",
-        usage=f"{PROG} IN OUT [options]\n       {PROG} IN... --output-dir DIR [options]",
+        usage=f"{PROG} IN OUT [options]\n       {PROG} IN -o OUT [options]\n"
+              f"       {PROG} IN... --output-dir DIR [options]",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="IN",
                    help="IN OUT: the input (a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, "
@@ -129,10 +142,11 @@ def build_parser() -> argparse.ArgumentParser:
                         ".usd, .usdz, or .ply: plain splats, no anchoring; '-' for standard "
                         "output). With --output-dir: every argument is an input, a glob "
                         "pattern or a manifest (.csv/.json)")
-    p.add_argument("-w", "--overwrite", action="store_true",
-                   help="replace existing outputs (default: refuse, exit 2)")
+    add_output(p, "OUT|DIR", ": one input and a file name (.glb, .gltf, .ply, .usda, .usdc, "
+                             ".usd, .usdz, '-'), or a folder for a batch (--output-dir)")
+    add_overwrite(p)
     bat = p.add_argument_group("batch")
-    bat.add_argument("-o", "--output-dir", metavar="DIR",
+    bat.add_argument("--output-dir", metavar="DIR",
                      help="convert every IN into DIR (created if missing)")
     bat.add_argument("--to", choices=TO_FORMATS,
                      help="output format: of a batch (default glb), or of '-' (glb or ply)")
@@ -215,12 +229,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="fail (exit 1, nothing written) when an anchor mesh does not fit its "
                         "splats (far from them, in other units or another frame), instead of "
                         "warning")
-    p.add_argument("--json", action="store_true",
-                   help="print the summary as JSON on stdout (an error too: {\"error\": ..., "
-                        "\"input\": ..., \"exit\": N})")
-    p.add_argument("-q", "--quiet", action="store_true",
-                   help="no progress bar, no summary and no warnings")
-    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    add_json(p)
+    add_quiet(p)
+    add_version(p, PROG)
     return p
 
 
@@ -264,7 +275,26 @@ def _spool_stdin(folder: str, stream: IO[bytes]) -> str:
 
 
 def _check_arguments(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
-    """What the parser alone cannot check: one input and one output without a batch."""
+    """What the parser alone cannot check: ``-o`` made a file or a folder (a batch) by its
+    name, and one input and one output without a batch."""
+    if args.output is not None:
+        if args.output_dir is not None:
+            parser.error("give -o or --output-dir, not both")
+        kind = "file" if args.output == "-" else \
+            output_kind(args.output, ["." + t for t in TO_FORMATS])
+        if kind is None:
+            parser.error(f"-o {args.output}: neither an output file name "
+                         f"(.{', .'.join(TO_FORMATS)}) nor a folder (one that exists, a path "
+                         f"ending in '/', or a name without a suffix); for a folder of that "
+                         f"name write --output-dir {args.output}")
+        if kind == "file":
+            if len(args.paths) != 1:
+                parser.error(f"-o {args.output} names one output file, but {len(args.paths)} "
+                             f"paths were given: write IN -o OUT (or IN OUT) for one file, or "
+                             f"IN... --output-dir DIR for a batch")
+            args.paths = [args.paths[0], args.output]
+        else:
+            args.output_dir = args.output
     if args.output_dir is not None:
         return
     for flag, value in (("--jobs", args.jobs), ("--scheduler", args.scheduler),
@@ -272,7 +302,8 @@ def _check_arguments(args: argparse.Namespace, parser: argparse.ArgumentParser) 
         if value is not None:
             parser.error(f"{flag} needs --output-dir DIR (a batch)")
     if len(args.paths) != 2:
-        parser.error("give IN OUT (one file), or IN... --output-dir DIR (a batch)")
+        parser.error("give IN OUT (or IN -o OUT) for one file, or IN... --output-dir DIR for "
+                     "a batch")
 
 
 def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
@@ -299,11 +330,20 @@ def _check_single(args: argparse.Namespace, parser: argparse.ArgumentParser) -> 
             raise UsageError("output exists; use -w/--overwrite to replace it", output)
 
 
+def _require_inputs(input_path: str, args: argparse.Namespace) -> None:
+    """Every file the conversion reads exists: a missing one is bad input (exit 1), named."""
+    require_input(input_path)
+    for extra in (*(args.mesh or ()), args.pt_path, args.bake_poses):
+        if extra is not None:
+            require_input(extra)
+
+
 def _convert_single(args: argparse.Namespace, parser: argparse.ArgumentParser,
                     progress: Progress) -> tuple[ConvertSummary, IO[str]]:
     """One input to one output, through temporary files for '-' (standard input/output)."""
-    _check_single(args, parser)
     input_path, output_path = args.paths
+    _require_inputs(input_path, args)
+    _check_single(args, parser)
     if "-" not in (input_path, output_path):
         return convert(input_path, output_path, _options(args), progress), sys.stdout
     with tempfile.TemporaryDirectory(prefix="gsverse-convert-") as work:

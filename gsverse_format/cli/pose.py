@@ -1,23 +1,38 @@
 """``gsverse-pose``: posed splats of an anchored asset from any deformation source.
 
-    gsverse-pose ASSET (--times T... | --fps F [--duration D]) [--source FILE]
-                 [--animation NAME|INDEX] [--deform KIND=AMOUNT ...] [--format ply|glb|usd]
-                 [-o DIR] [--vat OUT.exr [--vat-mode position|offset] [--vat-half]
-                 [--vat-width N] [--vat-normalize]] [-w] [--json] [-q]
+    gsverse-pose ASSET OUT [--times T... | --fps F [--duration D]] [--source FILE]
+                 [--animation NAME|INDEX] [--deform KIND=AMOUNT ...]
+                 [--to ply|glb|usda|usdc|usd|usdz] [--vat OUT.exr [--vat-mode position|offset]
+                 [--vat-half] [--vat-width N] [--vat-normalize]] [-w] [--json] [-q]
 
 The anchor mesh is posed at every time by the source (:mod:`gsverse_format.poses`): the
 asset's own skin/morph targets/animations by default, or ``--source`` (a skinned/morphed glTF
 with the anchor mesh's vertices, an ``.npz`` vertex cache, an OBJ/PLY sequence, an EXR VAT),
 then by the ``--deform`` quick looks in order (alone, they deform the rest pose). Each anchored
 primitive is remapped (:func:`gsverse_format.api.remap`) onto its posed anchor mesh; static
-primitives stay. Outputs: one file per time in DIR (``<asset>_fNNNN.ply`` as 3DGS PLY, or
-``.glb`` plain ``KHR_gaussian_splatting``), or one ``<asset>.usda`` with time samples
-(``--format usd``; time codes = seconds × ``--fps``, default 24 per second), and with
-``--vat`` an EXR vertex-animation texture of the anchor mesh over the sampled times.
+primitives stay.
 
-Exit codes: 0 success, 1 bad input, 2 usage error (existing outputs without ``-w``), 70
-internal error, 130 interrupted (143 SIGTERM, 129 SIGHUP; see :mod:`.boundary`). Errors are
-one line on stderr naming the file and the cause.
+``OUT`` (or ``-o OUT``; :mod:`gsverse_format.cli.grammar`) says what is written, by its name:
+
+* a ``.usda``, ``.usdc`` (binary crate), ``.usd`` (crate) or ``.usdz`` file: one USD file with
+  time samples (time codes = seconds × ``--fps``, default 24 per second);
+* a ``.ply`` (3DGS PLY) or ``.glb`` (plain ``KHR_gaussian_splatting``) file: that file for one
+  time; for several, ``OUT_fNNNN.ply`` … beside it;
+* a folder (``--output-dir DIR``, or an existing folder, a path ending in ``/`` or a name
+  without a suffix): ``<asset>_fNNNN.<ext>`` per time in it, or one ``<asset>.<ext>`` for USD,
+  the format from ``--to`` (default ``ply``; ``--format ply|glb|usd`` is the older spelling,
+  ``usd`` meaning ``usda``).
+
+and with ``--vat`` an EXR vertex-animation texture of the anchor mesh over the sampled times.
+
+Times. Quick looks alone (``--deform`` without ``--source``) are one pose: they take one time,
+t = 0, by default; several times are refused unless a look changes with time (``shake``), so no
+two written frames are the same. An animated source needs ``--times`` or ``--fps``. A time
+given twice is refused for the same reason.
+
+Exit codes: 0 success, 1 bad input (a missing or unreadable asset or source), 2 usage error
+(existing outputs without ``-w`` included), 70 internal error, 130 interrupted (143 SIGTERM,
+129 SIGHUP; see :mod:`.boundary`). Errors are one line on stderr naming the file and the cause.
 """
 from __future__ import annotations
 
@@ -36,14 +51,25 @@ from ..textsafe import safe_line
 from ..errors import FormatError, UsageError
 from ..progress import Progress
 from .boundary import parse_args, run_command
-from ..version import __version__
+from .grammar import (Parser, add_json, add_output, add_overwrite, add_quiet, add_version,
+                      one_output, output_kind)
 
 PROG = "gsverse-pose"
-FORMATS = {"ply": ".ply", "glb": ".glb", "usd": ".usda"}
+#: ``--to`` choices: posed files per time (ply, glb) or one USD file with time samples.
+TO_FORMATS = ("ply", "glb", "usda", "usdc", "usd", "usdz")
+USD_FORMATS = ("usda", "usdc", "usd", "usdz")
+#: ``--format`` (the older spelling of ``--to``) -> ``--to``.
+FORMATS = {"ply": "ply", "glb": "glb", "usd": "usda"}
 #: Most poses one run writes (a typo in --fps/--duration should not fill a disk).
 MAX_POSES = 100_000
 
 EPILOG = """\
+output (OUT or -o OUT, by its name):
+  posed.usda | .usdc | .usd | .usdz   one USD file with time samples (.usdc, .usd: binary crate)
+  posed.ply | posed.glb               that file for one time; several: posed_f0000.ply ...
+  DIR/ (or --output-dir DIR)          <asset>_f0000.ply ... per time, or <asset>.usda (--to
+                                      picks the format: ply, glb, usda, usdc, usd, usdz)
+
 sources (--source; default: the asset's own skinned/morphed anchor mesh and its animations):
   FILE.glb/.gltf   a skinned and/or morph-target glTF whose mesh has the anchor mesh's
                    vertices (same count and order, same rest positions), e.g. the file given to
@@ -53,29 +79,39 @@ sources (--source; default: the asset's own skinned/morphed anchor mesh and its 
   FILE.exr         vertex-animation texture (rows = frames, columns = vertices; see
                    gsverse_format.poses.vat)
   frames without times are 1/--source-fps apart (default 24). Times outside a source's
-  range clamp to its first or last pose.
+  range clamp to its first or last pose. An animated source needs --times or --fps.
 
 quick looks (--deform, several allowed, applied in order after the source):
   stretch=F (factor along +Y), twist=DEG, bend=DEG, shake=A (fraction of the bounding-box
-  diagonal); placed on the anchor mesh's bounding box.
+  diagonal); placed on the anchor mesh's bounding box. Without --source they are one pose,
+  written once (t = 0; several times only with shake, which differs at every time).
 
 examples:
-  gsverse-pose fox.glb --source Fox.glb --animation Walk --fps 24 -o posed/
-  gsverse-pose fox.glb --source Fox.glb --times 0.5 1.0 --format glb -o posed/
-  gsverse-pose capsule.glb --deform twist=90 --deform stretch=1.3 --times 0 -o look/
-  gsverse-pose fox.glb --source sim.npz --fps 30 --format usd -o out/ --vat out/fox_vat.exr
+  gsverse-pose capsule.glb look.ply --deform twist=90 --deform stretch=1.3
+  gsverse-pose fox.glb posed/ --source Fox.glb --animation Walk --fps 24
+  gsverse-pose fox.glb posed/ --source Fox.glb --times 0.5 1.0 --to glb
+  gsverse-pose fox.glb out/fox.usdc --source sim.npz --fps 30 --vat out/fox_vat.exr
 """
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog=PROG, description="Pose the splats of an anchored asset by a deformation source "
-                               "and write one posed file per time.",
+                               "and write the posed splats: a file per time, or one USD file "
+                               "with time samples.",
+        usage=f"{PROG} ASSET OUT [options]\n       {PROG} ASSET -o OUT [options]\n"
+              f"       {PROG} ASSET --output-dir DIR [options]",
         epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("asset", metavar="ASSET", help="an anchored asset (.glb, .gltf, .usda, ...)")
-    when = p.add_mutually_exclusive_group(required=True)
+    p.add_argument("out", nargs="?", metavar="OUT",
+                   help="what to write: a .usda/.usdc/.usd/.usdz file (time samples), a "
+                        ".ply/.glb file (one time; several: OUT_f0000.ply ...), or a folder")
+    add_output(p, "OUT")
+    p.add_argument("--output-dir", metavar="DIR",
+                   help="the folder for the posed files (created if missing)")
+    when = p.add_mutually_exclusive_group()
     when.add_argument("--times", type=float, nargs="+", metavar="T",
-                      help="the times to pose at, in seconds")
+                      help="the times to pose at, in seconds (quick looks alone: default 0)")
     when.add_argument("--fps", type=float, metavar="F",
                       help="pose at F frames per second from 0 to --duration (default: the "
                            "source's length)")
@@ -90,11 +126,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="frame rate of source frames that carry no times (default 24)")
     p.add_argument("--deform", action="append", metavar="KIND=AMOUNT",
                    help="a quick-look deformation: stretch=F, twist=DEG, bend=DEG, shake=A")
-    p.add_argument("--format", choices=tuple(FORMATS), default="ply",
-                   help="ply: 3DGS PLY per time (default); glb: plain KHR_gaussian_splatting "
-                        "GLB per time; usd: one .usda with time samples")
-    p.add_argument("-o", "--output-dir", metavar="DIR", help="folder for the posed files "
-                                                             "(created if missing)")
+    p.add_argument("--to", choices=TO_FORMATS,
+                   help="the output format when OUT is a folder (default ply: 3DGS PLY per "
+                        "time; glb: plain KHR_gaussian_splatting GLB per time; usda, usdc, "
+                        "usd, usdz: one USD file with time samples); with a file OUT, its "
+                        "suffix, which --to must match")
+    p.add_argument("--format", choices=tuple(FORMATS),
+                   help="the older spelling of --to: ply, glb, or usd (= usda)")
     vat = p.add_argument_group("vertex-animation texture")
     vat.add_argument("--vat", metavar="OUT.exr",
                      help="also write the anchor mesh's poses as an OpenEXR VAT")
@@ -107,11 +145,10 @@ def build_parser() -> argparse.ArgumentParser:
                           "meshes wrap onto more rows per frame)")
     vat.add_argument("--vat-normalize", action="store_true",
                      help="store values scaled into [0, 1], the bounds in the header")
-    p.add_argument("-w", "--overwrite", action="store_true",
-                   help="replace existing outputs (default: refuse, exit 2)")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar, no summary")
-    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    add_overwrite(p)
+    add_json(p)
+    add_quiet(p)
+    add_version(p, PROG)
     return p
 
 
@@ -144,7 +181,13 @@ class PoseSummary:
         return out
 
 
-def _times(args: argparse.Namespace, duration: float) -> np.ndarray:
+def _times(args: argparse.Namespace, duration: float, *, one_pose: bool) -> np.ndarray:
+    """The times to pose at. ``one_pose``: quick looks alone that do not change with time
+    (default one time, t = 0; several are refused: they would be identical frames)."""
+    if args.times is None and args.fps is None:     # quick looks alone (checked by run)
+        if args.duration is not None:
+            raise UsageError("--duration goes with --fps")
+        return np.zeros(1)
     if args.times is not None:
         if args.duration is not None:
             raise UsageError("--duration goes with --fps, not --times")
@@ -164,16 +207,65 @@ def _times(args: argparse.Namespace, duration: float) -> np.ndarray:
         raise UsageError("--times must be finite numbers")
     if len(times) > MAX_POSES:
         raise UsageError(f"{len(times)} poses asked for; at most {MAX_POSES}")
+    values, counts = np.unique(times, return_counts=True)
+    if np.any(counts > 1):
+        raise UsageError(f"--times gives t={values[counts > 1][0]:g} more than once: the "
+                         "frames would be identical")
+    if one_pose and len(times) > 1:
+        raise UsageError(f"the quick looks {', '.join(args.deform)} are the same at every time: "
+                         f"{len(times)} times would write {len(times)} identical frames; give "
+                         "one time (or none: t = 0), a --source that moves, or add shake=A")
     return times
 
 
-def _outputs(args: argparse.Namespace, stem: str, count: int) -> list[str]:
-    if args.output_dir is None:
-        return []
-    ext = FORMATS[args.format]
-    if args.format == "usd":
-        return [os.path.join(args.output_dir, stem + ext)]
-    return [os.path.join(args.output_dir, f"{stem}_f{i:04d}{ext}") for i in range(count)]
+def _quick_looks_only(args: argparse.Namespace) -> bool:
+    return bool(args.deform) and args.source is None
+
+
+def _out_format(args: argparse.Namespace) -> str | None:
+    """``--to``, or ``--format`` in its terms, or None."""
+    if args.to is not None and args.format is not None and FORMATS[args.format] != args.to \
+            and not (args.format == "usd" and args.to in USD_FORMATS):
+        raise UsageError(f"--to {args.to} and --format {args.format} disagree; give --to only")
+    return args.to or (FORMATS[args.format] if args.format else None)
+
+
+def _outputs(args: argparse.Namespace, stem: str, count: int) -> tuple[list[str], str | None]:
+    """The paths to write (none without OUT) and their format (``ply``, ``glb`` or a USD
+    suffix), from OUT's name (:func:`gsverse_format.cli.grammar.output_kind`)."""
+    out = one_output(args.out, args.output, "the output")
+    if out is not None and args.output_dir is not None:
+        raise UsageError("give OUT (or -o OUT) or --output-dir DIR, not both")
+    wanted = _out_format(args)
+    folder = args.output_dir
+    if out is not None:
+        if out == "-":
+            raise UsageError("posed splats go to files, not to standard output: give a file "
+                             "or folder name", out)
+        kind = output_kind(out, ["." + t for t in TO_FORMATS])
+        if kind is None:
+            raise UsageError(f"neither an output file name (.{', .'.join(TO_FORMATS)}) nor a "
+                             f"folder (one that exists, a path ending in '/', or a name without "
+                             f"a suffix); for a folder of that name write --output-dir {out}",
+                             out)
+        if kind == "folder":
+            folder = out
+        else:
+            fmt = os.path.splitext(out)[1].lower()[1:]
+            if wanted is not None and wanted != fmt and \
+                    not (args.to is None and args.format == "usd" and fmt in USD_FORMATS):
+                flag = f"--to {args.to}" if args.to else f"--format {args.format}"
+                raise UsageError(f"{flag} does not match the output's suffix", out)
+            if fmt in USD_FORMATS or count == 1:
+                return [out], fmt
+            base = os.path.splitext(out)[0]
+            return [f"{base}_f{i:04d}.{fmt}" for i in range(count)], fmt
+    if folder is None:
+        return [], None
+    fmt = wanted or "ply"
+    if fmt in USD_FORMATS:
+        return [os.path.join(folder, f"{stem}.{fmt}")], fmt
+    return [os.path.join(folder, f"{stem}_f{i:04d}.{fmt}") for i in range(count)], fmt
 
 
 def _posed_asset(asset, posed_meshes: dict[int, np.ndarray]):
@@ -199,8 +291,9 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     from ..poses.gltf_source import open_gltf_source
 
     started = _time.monotonic()
-    if args.output_dir is None and args.vat is None:
-        raise UsageError("nothing to write: give -o DIR and/or --vat OUT.exr")
+    if args.out is None and args.output is None and args.output_dir is None and args.vat is None:
+        raise UsageError("nothing to write: give OUT (a .ply/.glb/.usda/.usdc/.usd/.usdz file, "
+                         "or a folder) and/or --vat OUT.exr")
     if args.vat is not None and os.path.splitext(args.vat)[1].lower() != ".exr":
         raise UsageError("--vat writes OpenEXR: give a .exr file name", args.vat)
     if args.vat_width is not None and args.vat_width < 1:
@@ -208,6 +301,11 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     if not (math.isfinite(args.source_fps) and args.source_fps > 0):
         raise UsageError(f"--source-fps must be > 0, got {args.source_fps}")
     looks = parse_deformations(args.deform)
+    one_pose = _quick_looks_only(args) and not any(q.timed for q in looks)
+    if args.times is None and args.fps is None and not _quick_looks_only(args):
+        raise UsageError("give --times T... or --fps F: the times of the animation to pose "
+                         "(or --deform alone for a quick look)")
+    _out_format(args)
     asset_path = args.asset
     if not os.path.isfile(asset_path):
         raise FormatError("file not found", asset_path)
@@ -252,16 +350,16 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
         driven = dict(meshes)
 
     duration = source.duration() if source is not None else 0.0
-    times = _times(args, duration)
-    usd = args.output_dir is not None and args.format == "usd"
+    times = _times(args, duration, one_pose=one_pose)
+    stem = os.path.splitext(os.path.basename(asset_path))[0]
+    outputs, fmt = _outputs(args, stem, len(times))
+    usd = fmt in USD_FORMATS
     if (usd or args.vat) and np.any(np.diff(times) <= 0):
         raise UsageError(f"{'a VAT' if args.vat else 'USD time samples'} needs strictly "
                          f"increasing --times")
     if usd and len(meshes) != 1:
         raise UsageError("USD time samples need an asset with exactly one anchor mesh",
                          asset_path)
-    stem = os.path.splitext(os.path.basename(asset_path))[0]
-    outputs = _outputs(args, stem, len(times))
     targets = outputs + ([args.vat] if args.vat else [])
     if not args.overwrite:
         for path in targets:
@@ -270,12 +368,13 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     for path in targets:
         if os.path.exists(path) and os.path.samefile(path, asset_path):
             raise UsageError("output would overwrite the input asset", path)
-    if args.output_dir is not None:
-        if os.path.exists(args.output_dir) and not os.path.isdir(args.output_dir):
-            raise UsageError("is not a folder", args.output_dir)
-        os.makedirs(args.output_dir, exist_ok=True)
+    folders = {os.path.dirname(path) for path in outputs}
+    for folder in sorted(f for f in folders if f):
+        if os.path.exists(folder) and not os.path.isdir(folder):
+            raise UsageError("is not a folder", folder)
+        os.makedirs(folder, exist_ok=True)
 
-    summary = PoseSummary(asset_path, source_label, args.format, [float(t) for t in times],
+    summary = PoseSummary(asset_path, source_label, fmt or "vat", [float(t) for t in times],
                           anchor_meshes=len(driven), splats=asset.splat_count())
     vat_mesh_key = next(iter(driven))
     progress.stage(f"posing {len(times)} time(s)")
@@ -295,8 +394,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
                                            float(np.linalg.norm(v - rest, axis=1).max()))
         frames.append(posed)
         progress.update(i + 1, len(times), f"t={t:g}s")
-    if args.output_dir is not None and args.format != "usd":
-        progress.stage(f"writing {len(times)} {args.format} file(s)")
+    if outputs and not usd:
+        progress.stage(f"writing {len(times)} {fmt} file(s)")
         for i, posed in enumerate(frames):
             write(_posed_asset(asset, posed), outputs[i], protect=(asset_path,))
             summary.outputs.append(outputs[i])

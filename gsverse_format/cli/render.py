@@ -1,8 +1,12 @@
-"""``gsverse-render``: pictures of an asset at rest or posed (PNG or OpenEXR).
+"""``gsverse-render ASSET OUT``: pictures of an asset at rest or posed (PNG or OpenEXR).
 
-Exit codes: 0 success, 1 bad input (unreadable asset or pose file), 2 usage error (bad options,
-an existing output without -w), 70 internal error, 130 interrupted (143 SIGTERM, 129 SIGHUP; see
-:mod:`.boundary`). Errors are one line on stderr (``gsverse-render: error: <file>: <cause>``).
+``OUT`` may also be given as ``-o OUT``; the flags shared by every command (``-o``, ``-w``,
+``-q``, ``--json``, ``--version``) are those of :mod:`gsverse_format.cli.grammar`.
+
+Exit codes: 0 success, 1 bad input (a missing or unreadable asset or pose file), 2 usage error
+(bad options, an existing output without -w), 70 internal error, 130 interrupted (143 SIGTERM,
+129 SIGHUP; see :mod:`.boundary`). Errors are one line on stderr (``gsverse-render: error:
+<file>: <cause>``).
 """
 from __future__ import annotations
 
@@ -18,16 +22,17 @@ import numpy as np
 from ..errors import FormatError, GsverseError, UsageError
 from ..progress import Progress
 from .boundary import parse_args, run_command
-from ..version import __version__
+from .grammar import Parser, add_json, add_output, add_overwrite, add_quiet, add_version, one_output
 
 PROG = "gsverse-render"
 
 EPILOG = """\
 examples:
-  gsverse-render anchored.glb -o rest.png
-  gsverse-render anchored.glb --deform twist=90 --sheet -o sheet.png
-  gsverse-render anchored.glb --pose pose.npy --camera "eye=0,1,4 target=0,0,0 fov=40" -o posed.exr
-  gsverse-render anchored.glb --turntable 36 --size 256x256 -o spin.png   # spin_000.png ...
+  gsverse-render anchored.glb rest.png
+  gsverse-render anchored.glb -o rest.png                    # the same
+  gsverse-render anchored.glb sheet.png --deform twist=90 --sheet
+  gsverse-render anchored.glb posed.exr --pose pose.npy --camera "eye=0,1,4 target=0,0,0 fov=40"
+  gsverse-render anchored.glb spin.png --turntable 36 --size 256x256   # spin_000.png ...
 
 poses:
   --pose FILE   anchor vertices (V, 3): .npy, .npz (the array 'vertices', or its only array)
@@ -41,16 +46,19 @@ poses:
 output:
   .png: 8-bit RGBA, sRGB-encoded (the splats' colours as blended; transparent background
   unless --background); .exr: linear premultiplied R, G, B (half), A, and Z (float32 camera
-  depth). --sheet puts rest | posed | posed anchor-mesh wireframe side by side (PNG only).
+  depth). --sheet puts rest | posed | posed anchor-mesh wireframe side by side (PNG only),
+  seen by one camera that frames the rest and the posed asset together.
 """
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description="Render a splat asset at rest or posed "
-                                "(CPU reference renderer).", epilog=EPILOG,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("asset", help="a .glb/.gltf, 3DGS .ply or USD file")
-    p.add_argument("-o", "--output", required=True, help="OUT.png or OUT.exr")
+    p = Parser(prog=PROG, description="Render a splat asset at rest or posed (CPU reference "
+               "renderer).", epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter,
+               usage=f"{PROG} ASSET OUT [options]\n       {PROG} ASSET -o OUT [options]")
+    p.add_argument("asset", metavar="ASSET", help="a .glb/.gltf, 3DGS .ply or USD file")
+    p.add_argument("out", nargs="?", metavar="OUT",
+                   help="OUT.png or OUT.exr (with --turntable N: OUT_000.png ...)")
+    add_output(p, "OUT")
     pose = p.add_mutually_exclusive_group()
     pose.add_argument("--time", type=float, metavar="T", help="sample the asset's own animation")
     pose.add_argument("--pose", metavar="FILE", help="anchor vertices (V, 3) .npy/.npz/.f32")
@@ -64,13 +72,14 @@ def build_parser() -> argparse.ArgumentParser:
                    "automatic framing, degrees (default 40)")
     p.add_argument("--turntable", type=int, metavar="N",
                    help="N frames around the vertical axis: OUT_000.png ...")
-    p.add_argument("--sheet", action="store_true", help="rest | posed | wireframe (PNG)")
+    p.add_argument("--sheet", action="store_true", help="rest | posed | wireframe (PNG), one "
+                   "camera framing rest and posed")
     p.add_argument("--background", metavar="R,G,B", help="background colour 0..1 (sRGB); "
                    "PNG default transparent (sheets: black)")
-    p.add_argument("-w", "--overwrite", action="store_true", help="replace existing outputs")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors")
-    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    add_overwrite(p)
+    add_json(p)
+    add_quiet(p)
+    add_version(p, PROG)
     return p
 
 
@@ -142,17 +151,19 @@ def _poses(args, asset):
 
 
 def _outputs(args, frames: int) -> list[str]:
-    out = args.output
+    out = one_output(args.out, args.output, "the picture")
+    if out is None:
+        raise UsageError("give the picture to write: ASSET OUT.png (or OUT.exr, or -o OUT)")
     base, ext = os.path.splitext(out)
     if ext.lower() not in (".png", ".exr"):
-        raise UsageError(f"{out}: the output must end in .png or .exr")
+        raise UsageError("the output must end in .png or .exr", out)
     if args.sheet and ext.lower() != ".png":
-        raise UsageError("--sheet writes a PNG")
+        raise UsageError("--sheet writes a PNG", out)
     paths = [out] if frames == 1 else [f"{base}_{k:03d}{ext}" for k in range(frames)]
     if not args.overwrite:
         for path in paths:
-            if os.path.exists(path):
-                raise UsageError(f"{path} exists (use -w to replace it)")
+            if os.path.lexists(path):
+                raise UsageError("output exists; use -w/--overwrite to replace it", path)
     return paths
 
 
@@ -160,7 +171,7 @@ def run(args, progress: Progress) -> dict:
     from ..pipeline import read_input
     from ..render.camera import CameraSpecError, parse_camera, turntable
     from ..render.output import write_image, write_png
-    from ..render.scene import auto_camera, gaussians, render_asset, sheet
+    from ..render.scene import auto_camera, gaussians, render_asset, sheet, sheet_camera
 
     t0 = time.perf_counter()
     width, height = _size(args.size)
@@ -173,6 +184,8 @@ def run(args, progress: Progress) -> dict:
         raise UsageError("--fov must be between 0 and 180 degrees")
     frames = args.turntable or 1
     paths = _outputs(args, frames)
+    if not os.path.exists(args.asset):
+        raise FormatError("file not found", args.asset)
     progress.stage("reading")
     try:
         asset = read_input(args.asset)  # USD in a child process
@@ -184,7 +197,9 @@ def run(args, progress: Progress) -> dict:
         raise FormatError("holds no splats", args.asset)
     poses, pose_name = _poses(args, asset)
     g = gaussians(asset, poses)
-    cam = auto_camera(g, width, height, fov=args.fov)
+    # a sheet shows rest and posed side by side: one camera that frames both
+    cam = sheet_camera(asset, poses, width, height, fov=args.fov) if args.sheet \
+        else auto_camera(g, width, height, fov=args.fov)
     if args.camera:
         try:
             cam = parse_camera(args.camera, width=width, height=height, default=cam)

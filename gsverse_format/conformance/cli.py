@@ -96,7 +96,7 @@ def _dump(args) -> int:
     from .render_export import copy_reference_pictures
 
     if args.impl == "fast":
-        from ..remap_fast import numba_available
+        from ..remapping.fast import numba_available
 
         backend = "numba" if numba_available() else "numpy"
         run_plugin(args.dir, args.results, lambda: FastPlugin(backend),

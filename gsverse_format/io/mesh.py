@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import FormatError, UsageError
 from ..limits import MAX_MESH_FILE_BYTES
 from ..model import TriangleMesh
+from .ply.header import PlyHeader
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
 
@@ -53,6 +54,29 @@ def _file_bytes(path: str) -> bytes:
     return data
 
 
+#: Vertex properties that make a PLY a 3DGS splat file (the original 3DGS writer's names).
+_SPLAT_PROPERTIES = ("scale_0", "rot_0", "opacity", "f_dc_0")
+
+
+def _refuse_point_cloud(header: PlyHeader, path: str) -> None:
+    """A PLY without faces is a point cloud, not a triangle mesh: refused with one line that
+    says what it is (a 3DGS splat file is the usual mistake: the splats given as ``--mesh``)."""
+    face = header.element("face")
+    if face is not None and face.count > 0:
+        return
+    why = "no 'face' element" if face is None else "an empty 'face' element"
+    vertex = header.element("vertex")
+    count = vertex.count if vertex is not None else 0
+    names = set(vertex.names) if vertex is not None else set()
+    if names.issuperset(_SPLAT_PROPERTIES):
+        raise FormatError(f"is a point cloud of {count} Gaussian splats (a 3DGS PLY: {why}), "
+                          "not a triangle mesh; give the mesh the splats belong to (.obj, .ply "
+                          "with faces, .stl, .off, .glb, .gltf), or no mesh to reconstruct one "
+                          "from the splats", path)
+    raise FormatError(f"is a point cloud of {count} vertices ({why}), not a triangle mesh",
+                      path)
+
+
 def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
     """Read a triangle mesh; raises :class:`FormatError` with a one-line cause on bad input."""
     path = os.fspath(path)
@@ -69,8 +93,9 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
         return read_gltf_triangles(path)
     if ext == ".ply":
         # The strict PLY reader (declared counts checked before allocation, fuzzed).
-        from .ply import read_ply_mesh
+        from .ply import read_ply_header, read_ply_mesh
 
+        _refuse_point_cloud(read_ply_header(path), path)
         return read_ply_mesh(path, triangulate=True)
     import trimesh
 

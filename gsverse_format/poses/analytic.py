@@ -15,7 +15,9 @@ deformation is placed on the mesh's bounding box, along the glTF up axis (+Y):
   standard deviation ``A / 4``, both in units of the box diagonal; seeded by the time, so every
   time shakes differently and the same time always the same way.
 
-Several deformations apply in the order given.
+Several deformations apply in the order given. Only ``shake`` changes with the time
+(:attr:`QuickLook.timed`): ``gsverse-pose`` writes the others alone once, never as identical
+frames.
 """
 from __future__ import annotations
 
@@ -27,11 +29,13 @@ import numpy as np
 from ..errors import UsageError
 
 __all__ = ["stretch", "stretch_along", "taper", "twist", "bend", "shake", "random_quaternions",
-           "random_rotation", "QuickLook", "parse_deformations", "KINDS"]
+           "random_rotation", "QuickLook", "parse_deformations", "KINDS", "TIMED_KINDS"]
 
 #: The quick-look deformations and what their amount means.
 KINDS = {"stretch": "factor along +Y", "twist": "degrees", "bend": "degrees",
          "shake": "fraction of the bounding-box diagonal"}
+#: The quick looks that change with the time (:attr:`QuickLook.timed`).
+TIMED_KINDS = ("shake",)
 
 
 def random_quaternions(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -118,6 +122,12 @@ class QuickLook:
 
     kind: str
     amount: float
+
+    @property
+    def timed(self) -> bool:
+        """Whether the look changes with the time (``shake``, seeded by it); the others give
+        the same vertices at every time, so several times of them alone are one pose."""
+        return self.kind in TIMED_KINDS
 
     def apply(self, v: np.ndarray, rest: np.ndarray, t: float = 0.0) -> np.ndarray:
         """``v`` (V, 3) deformed; the placement comes from the bounding box of ``rest``."""

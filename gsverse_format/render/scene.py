@@ -1,7 +1,7 @@
 """From an asset to pictures: Gaussians of every primitive in a pose, framing, wireframes and the
 before/after sheet.
 
-Poses. Anchored primitives are remapped (:func:`gsverse_format.remap_reference.remap`, the
+Poses. Anchored primitives are remapped (:func:`gsverse_format.remapping.reference.remap`, the
 float64 reference) onto anchor vertices: the rest pose, a (V, 3) array given by the caller (one
 primitive, or all anchored primitives' vertices concatenated in file order), an analytic quick
 look (:func:`deform_vertices`: stretch, twist, bend about the anchor meshes' bounding box), or
@@ -24,8 +24,8 @@ from .project_reference import Settings
 from .raster import Image, render_gaussians
 
 __all__ = ["Gaussians", "gaussians", "pose_vertices", "split_pose", "deform_vertices",
-           "DEFORMATIONS", "anchor_bounds", "auto_camera", "render_asset", "draw_wireframe",
-           "sheet"]
+           "DEFORMATIONS", "anchor_bounds", "auto_camera", "sheet_camera", "render_asset",
+           "draw_wireframe", "sheet"]
 
 DEFORMATIONS = ("stretch", "twist", "bend")
 
@@ -121,7 +121,7 @@ def deform_vertices(asset: SplatAsset, name: str, amount: float) -> list[np.ndar
 def gaussians(asset: SplatAsset, poses: list[np.ndarray] | None = None) -> Gaussians:
     """All primitives' Gaussians; anchored ones remapped onto ``poses`` (one (V, 3) array per
     anchored primitive) or, without poses, onto their rest mesh."""
-    from ..remap_reference import remap
+    from ..remapping.reference import remap
 
     means, covs, ops, shs, spaces = [], [], [], [], set()
     k = max((p.splats.sh.shape[1] for p in asset.primitives), default=1)
@@ -150,13 +150,33 @@ def gaussians(asset: SplatAsset, poses: list[np.ndarray] | None = None) -> Gauss
                      np.concatenate(shs), spaces.pop())
 
 
+def _framed_box(g: Gaussians) -> tuple[np.ndarray, np.ndarray]:
+    """The box a camera frames: the means' 1st–99th percentile box (so stray splats do not
+    shrink the object), or their whole box for 100 splats or fewer."""
+    if len(g.means) > 100:
+        return np.percentile(g.means, 1, axis=0), np.percentile(g.means, 99, axis=0)
+    return g.bounds()
+
+
 def auto_camera(g: Gaussians, width: int, height: int, **kw) -> Camera:
     """Frame the Gaussians' means (1st–99th percentile box, so stray splats do not shrink the
     object) from the front-right, slightly above."""
-    if len(g.means) > 100:
-        lo, hi = np.percentile(g.means, 1, axis=0), np.percentile(g.means, 99, axis=0)
-    else:
-        lo, hi = g.bounds()
+    lo, hi = _framed_box(g)
+    return frame_bounds(lo, hi, width=width, height=height, **kw)
+
+
+def sheet_camera(asset: SplatAsset, poses: list[np.ndarray] | None, width: int, height: int,
+                 **kw) -> Camera:
+    """The one camera of a :func:`sheet`: it frames the union of what the three panels show,
+    the rest pose, the posed Gaussians (each their 1st–99th percentile box) and the posed
+    anchor meshes, so that neither picture is cut when the pose moves the asset away from
+    its rest place (a bend, a stretch)."""
+    boxes = [_framed_box(gaussians(asset, None))]
+    if poses is not None:
+        boxes.append(_framed_box(gaussians(asset, poses)))
+        boxes += [(v.min(0), v.max(0)) for v in poses if len(v)]
+    lo = np.min([b[0] for b in boxes], axis=0)
+    hi = np.max([b[1] for b in boxes], axis=0)
     return frame_bounds(lo, hi, width=width, height=height, **kw)
 
 
@@ -193,7 +213,7 @@ def sheet(asset: SplatAsset, poses: list[np.ndarray] | None, camera: Camera,
           settings: Settings = Settings(), *, background=(0.0, 0.0, 0.0),
           backend: str = "auto", progress=None) -> np.ndarray:
     """Before/after sheet (H, 3W, 3) uint8: rest | posed | posed anchor mesh wireframe, one
-    camera (framing the posed asset)."""
+    camera for the three (:func:`sheet_camera` frames them all)."""
     from .output import to_rgba8
 
     panels = []
