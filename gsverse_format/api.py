@@ -11,6 +11,15 @@
 
 Everything here delegates to the module that owns the work; the functions import it when
 called, so that importing :mod:`gsverse_format` stays cheap and free of import cycles.
+
+Paths are ``str`` or any path-like object (``pathlib.Path``), wherever a function takes one
+(``mesh=``, ``meshes=``, ``pt_path=``, ``bake_poses=``, ``protect=`` included).
+
+Existing outputs: :func:`write` and :func:`convert` replace an existing file at the output
+path, as Python's own writers do (``open(path, "w")``, ``numpy.save``), so that a script or
+notebook can be run again; ``overwrite=False`` refuses instead, as the command-line tools do
+without ``-w``: a :class:`~gsverse_format.errors.UsageError` naming the output, nothing
+written. Either way no input is ever replaced, and the replacement is atomic.
 """
 from __future__ import annotations
 
@@ -22,11 +31,10 @@ if TYPE_CHECKING:  # pragma: no cover - annotations only
 
     from .pipeline import ConvertSummary
     from .model import Anchoring, SplatAsset, SplatCloud, TriangleMesh
-    from .remap_reference import RemapResult
+    from .remapping.reference import RemapResult
     from .validators.validate import Report
 
 __all__ = ["read", "write", "convert", "remap", "validate", "bind"]
-
 
 
 def read(path: str | os.PathLike[str]) -> SplatAsset:
@@ -40,30 +48,44 @@ def read(path: str | os.PathLike[str]) -> SplatAsset:
     return read_asset(path)
 
 
-def write(asset: SplatAsset, path: str | os.PathLike[str], **options: Any) -> None:
+def write(asset: SplatAsset, path: str | os.PathLike[str], *, overwrite: bool = True,
+          **options: Any) -> None:
     """Write ``asset`` in the format of ``path``'s suffix, atomically (a failed write leaves no
-    file and never replaces an existing one half-written). ``options`` go to the format's
-    writer (e.g. ``protect=`` paths that must not be overwritten)."""
+    file and never replaces an existing one half-written). An existing file at ``path`` is
+    replaced, unless ``overwrite=False``: then it is a
+    :class:`~gsverse_format.errors.UsageError`. ``options`` go to the format's writer (e.g.
+    ``protect=`` paths that must not be overwritten)."""
     from .io.registry import write_asset
 
+    _refuse_existing(path, overwrite)
     write_asset(asset, path, **options)
 
 
-def convert(input: str | os.PathLike[str], output: str | os.PathLike[str],
-            **options: Any) -> ConvertSummary:
+def convert(input: str | os.PathLike[str], output: str | os.PathLike[str], *,
+            overwrite: bool = True, **options: Any) -> ConvertSummary:
     """Run the ``gsverse-convert`` pipeline: ``options`` are the fields of
     :class:`gsverse_format.pipeline.ConvertOptions` (``mesh=``, ``source=``, ``deformation=``,
-    ``max_distance=``, ...). Returns the summary ``--json`` prints."""
+    ``max_distance=``, ...). Returns the summary ``--json`` prints. An existing ``output`` is
+    replaced, unless ``overwrite=False`` (``gsverse-convert`` without ``-w``): then it is a
+    :class:`~gsverse_format.errors.UsageError`; inputs are never replaced."""
     from .pipeline import ConvertOptions, convert as run
 
+    _refuse_existing(output, overwrite)
     return run(os.fspath(input), os.fspath(output), ConvertOptions(**options))
+
+
+def _refuse_existing(path: str | os.PathLike[str], overwrite: bool) -> None:
+    if not overwrite and os.path.lexists(path):
+        from .errors import UsageError
+
+        raise UsageError("output exists; pass overwrite=True to replace it", path)
 
 
 def remap(anchoring: Anchoring, vertices: np.ndarray | None = None) -> RemapResult:
     """The float64 reference remap (spec §Remap) of ``anchoring``'s splats onto the anchor
     mesh posed at ``vertices`` (V, 3) (default: the rest pose): means, rotations, scales and
-    covariances. For per-frame work use :class:`gsverse_format.remap_fast.FastRemapper`."""
-    from .remap_reference import remap as reference
+    covariances. For per-frame work use :class:`gsverse_format.remapping.fast.FastRemapper`."""
+    from .remapping.reference import remap as reference
 
     return reference(anchoring, vertices)
 

@@ -4,9 +4,12 @@ Temporary files (and folders) are named ``.<target name>.gsverse-tmp-<host>-<pid
 hidden, never ending in an output suffix (so that no glob, ``--skip-existing`` or folder scan
 takes one for an output), and naming the machine and process that owns them. A process
 removes its own temporaries when it fails or is interrupted (the command-line tools turn
-SIGTERM and SIGHUP into the same unwinding as Ctrl-C); a process killed outright (SIGKILL,
-power loss) leaves its temporary behind, and the next write into that folder on the same
-machine removes it once its process is gone and it is older than :data:`STALE_AFTER_S`.
+SIGTERM and SIGHUP into the same unwinding as Ctrl-C), wherever the interruption lands: as
+a temporary comes into being, while it is written, during the rename (which is then undone:
+an interrupted write leaves the output as it was) and while it is removed
+(:func:`interruptions_deferred`). A process killed outright (SIGKILL, power loss) leaves its
+temporary behind, and the next write into that folder on the same machine removes it once
+its process is gone and it is older than :data:`STALE_AFTER_S`.
 
 Operating-system failures of the write itself (a read-only folder, a full disk, a file-size
 limit, an output path that is a folder) are :class:`~gsverse_format.errors.OutputError`
@@ -21,14 +24,20 @@ import os
 import re
 import secrets
 import shutil
+import signal
 import socket
+import threading
 import time
-from typing import IO, Iterator
+from typing import IO, Any, Callable, Iterator, TypeVar
 
 from .errors import OutputError, UsageError
 
 __all__ = ["atomic_write", "temporary_folder", "check_target", "file_mode", "is_temporary",
-           "sweep_stale", "discard_temporaries", "output_error", "TEMP_MARK", "STALE_AFTER_S"]
+           "sweep_stale", "discard_temporaries", "interruptions_deferred", "outputs_written",
+           "output_error",
+           "TEMP_MARK", "STALE_AFTER_S"]
+
+T = TypeVar("T")
 
 #: What every temporary's name holds between the target's name and its owner.
 TEMP_MARK = ".gsverse-tmp-"
@@ -46,6 +55,8 @@ _NAME = re.compile(r"^\.(?P<target>.+)" + re.escape(TEMP_MARK)
                    + r"(?P<host>[0-9a-f]{8})-(?P<pid>\d+)-[0-9a-f]{8}$")
 #: Temporaries this process has open right now (removed by :func:`discard_temporaries`).
 _LIVE: set[str] = set()
+#: Outputs this process has put in place (see :func:`outputs_written`).
+_WRITTEN: list[str] = []
 #: Folders this process has swept already.
 _SWEPT: set[str] = set()
 
@@ -114,12 +125,15 @@ def _sweep_once(folder: str) -> None:
 
 
 def _remove(tmp: str) -> None:
-    with contextlib.suppress(FileNotFoundError):
-        if os.path.isdir(tmp) and not os.path.islink(tmp):
-            shutil.rmtree(tmp, ignore_errors=True)
-        else:
-            os.unlink(tmp)
-    _LIVE.discard(tmp)
+    """Remove the temporary ``tmp`` (gone already: nothing to do); an interruption received
+    meanwhile is raised once it is gone."""
+    with interruptions_deferred():
+        with contextlib.suppress(FileNotFoundError):
+            if os.path.isdir(tmp) and not os.path.islink(tmp):
+                shutil.rmtree(tmp, ignore_errors=True)
+            else:
+                os.unlink(tmp)
+        _LIVE.discard(tmp)
 
 
 def discard_temporaries() -> None:
@@ -189,78 +203,201 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb",
                  protect: tuple[str | os.PathLike, ...] = ()) -> Iterator[IO]:
     """Open a temporary file in the target's folder; on success rename it over ``path``.
 
-    On any exception the temporary file is removed and ``path`` is left untouched, so a
-    failed write never leaves a half-written output. ``protect`` lists inputs that must never
-    be overwritten: files, and folders (no file inside one is replaced); a ``UsageError`` is
-    raised before anything is written. An operating-system refusal to write (see
-    :func:`output_error`) is an :class:`OutputError` naming ``path``.
+    ``mode`` is ``"wb"`` or ``"w"`` (text). On any exception the temporary file is removed and
+    ``path`` is left untouched, so a failed write never leaves a half-written output; an
+    interruption (Ctrl-C, or SIGTERM/SIGHUP under the command-line tools) received at any
+    point before the output is in place is such an exception (see :func:`_commit`).
+    ``protect`` lists inputs that must never be overwritten: files, and folders (no file
+    inside one is replaced); a ``UsageError`` is raised before anything is written. An
+    operating-system refusal to write (see :func:`output_error`) is an :class:`OutputError`
+    naming ``path``.
     """
+    if "w" not in mode:
+        raise ValueError(f"atomic_write writes new files: mode 'w' or 'wb', not {mode!r}")
     path = os.fspath(path)
     folder = check_target(path, tuple(protect))
     _sweep_once(folder)
     tmp = _temporary_name(path)
-    _LIVE.add(tmp)
-    try:
-        try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
-                         0o666)
-        except BaseException:
-            _LIVE.discard(tmp)
-            raise
-        try:
-            with os.fdopen(fd, mode) as handle:
-                yield handle
-                handle.flush()
-                os.fsync(handle.fileno())
-            _deliver_pending_signals()
-            os.replace(tmp, path)
-            _LIVE.discard(tmp)
-        except BaseException:
-            _remove(tmp)
-            raise
-    except OSError as err:
-        wrapped = output_error(err, path)
-        if wrapped is None:
-            raise
-        raise wrapped from None
-
-
-def _deliver_pending_signals() -> None:
-    """Run the Python handlers of signals that arrived during the last system calls (the
-    write and ``fsync`` of a large file take most of a conversion's final second) *before*
-    the rename: CPython runs handlers only at certain points of Python code, such as entering
-    a Python function (this one), and none lies between ``fsync`` and ``os.replace``. A
-    SIGINT/SIGTERM/SIGHUP received while the file was written then aborts the write, and the
-    output is left as it was, instead of being renamed into place just before the
-    interruption is reported."""
+    # open() makes the file and its file object in one call: no interruption can come between
+    # the two and leave the descriptor without an owner ("x": never an existing file).
+    with _output_errors(path), _owned(tmp, lambda: open(tmp, mode.replace("w", "x"))) as handle:
+        with handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        _commit(tmp, path)
 
 
 @contextlib.contextmanager
 def temporary_folder(path: str | os.PathLike,
-                     protect: tuple[str | os.PathLike, ...] = ()) -> Iterator[str]:
+                     protect: tuple[str | os.PathLike, ...] = (), *,
+                     result: str | None = None) -> Iterator[str]:
     """A temporary folder beside ``path``, named and cleaned up like :func:`atomic_write`'s
-    files, for writers that need file names (move the finished file over ``path`` with
-    ``os.replace`` inside the block); removed with everything in it on leaving."""
+    files, for writers that need file names; removed with everything in it on leaving.
+
+    With ``result`` (a file name in the folder), the file the block leaves there becomes
+    ``path`` when the block completes, exactly as :func:`atomic_write` commits its file
+    (interruptions and refusals included). Without it the block moves its file into place
+    itself."""
     path = os.fspath(path)
     folder = check_target(path, tuple(protect))
     _sweep_once(folder)
     tmp = _temporary_name(path)
-    _LIVE.add(tmp)
+    with _output_errors(path), _owned(tmp, lambda: os.mkdir(tmp, 0o700)):
+        yield tmp
+        if result is not None:
+            _commit(os.path.join(tmp, result), path)
+
+
+@contextlib.contextmanager
+def _output_errors(path: str) -> Iterator[None]:
+    """Operating-system refusals to write (:func:`output_error`) raised inside, as
+    :class:`OutputError` naming ``path``; any other ``OSError`` is a bug and passes as is."""
     try:
-        try:
-            os.mkdir(tmp, 0o700)
-        except BaseException:
-            _LIVE.discard(tmp)
-            raise
-        try:
-            yield tmp
-        finally:
-            _remove(tmp)
+        yield
     except OSError as err:
         wrapped = output_error(err, path)
         if wrapped is None:
             raise
         raise wrapped from None
+
+
+@contextlib.contextmanager
+def _owned(tmp: str, create: Callable[[], T]) -> Iterator[T]:
+    """``create()`` the temporary ``tmp`` (a file or a folder; yields what ``create`` returns)
+    and remove it on leaving, however the block ends; a rename inside the block (the commit)
+    leaves nothing to remove.
+
+    It is registered for :func:`discard_temporaries` before it exists. A ``create`` that
+    fails with an ``OSError`` made nothing (an existing name is refused), so nothing is
+    removed; any other exception out of it is an interruption raised just as the temporary
+    came into being, which therefore is removed."""
+    _LIVE.add(tmp)
+    try:
+        made = create()
+    except OSError:
+        _LIVE.discard(tmp)
+        raise
+    except BaseException:
+        _remove(tmp)
+        raise
+    try:
+        yield made
+    finally:
+        _remove(tmp)
+
+
+def _commit(tmp: str, path: str) -> None:
+    """Rename the finished temporary file ``tmp`` over ``path``: the one point at which an
+    output appears or changes (:func:`atomic_write`, :func:`temporary_folder`).
+
+    An interruption received before the rename aborts it: the Python handlers of signals
+    that arrived during the last system calls run first (CPython runs them only at certain
+    points of Python code, such as entering a Python function, and none lies between
+    ``fsync`` and the rename). One received *during* the rename is raised just after it,
+    when ``path`` already holds the new file; the rename is then undone (the previous file,
+    kept as a hard link for that moment, is put back, or the new one removed), so that an
+    exception out of here always means that ``path`` is as it was. (Only where the file
+    system refuses hard links can a replaced file not be put back.) A completed rename is
+    recorded in :func:`outputs_written`."""
+    backup = _temporary_name(path)
+    _LIVE.add(backup)
+    try:
+        previous = _keep(path, backup)
+        try:
+            _deliver_pending_signals()
+            os.replace(tmp, path)
+        except BaseException:
+            if not os.path.lexists(tmp):  # renamed: the exception came just after the rename
+                _undo(path, backup, previous)
+            raise
+        _WRITTEN.append(path)
+    finally:
+        _remove(backup)
+
+
+def outputs_written() -> list[str]:
+    """The outputs this process has put in place so far, in order (for a message after an
+    interruption: one that arrives after an output's rename finds it written)."""
+    return list(_WRITTEN)
+
+
+#: What :func:`_keep` found at the target: nothing, a file linked to the backup name, or a
+#: file that could not be linked.
+_NOTHING, _KEPT, _NOT_KEPT = "nothing", "kept", "not kept"
+
+
+def _keep(path: str, backup: str) -> str:
+    """Link the file at ``path`` (if any) to the name ``backup``, so that a rename over it
+    can be undone."""
+    try:
+        os.link(path, backup, follow_symlinks=False)
+    except FileNotFoundError:
+        return _NOTHING if not os.path.lexists(path) else _NOT_KEPT
+    except (OSError, NotImplementedError):  # no hard links on this file system
+        return _NOT_KEPT
+    return _KEPT
+
+
+def _undo(path: str, backup: str, previous: str) -> None:
+    """Put ``path`` back as it was before the rename of :func:`_commit`."""
+    with interruptions_deferred(), contextlib.suppress(OSError):
+        if previous == _KEPT:
+            os.replace(backup, path)
+        elif previous == _NOTHING:
+            os.unlink(path)
+
+
+def _deliver_pending_signals() -> None:
+    """Run the Python handlers of signals received so far (calling a Python function is one
+    of the points where CPython runs them)."""
+
+
+#: The signals that interrupt a run (the command-line tools give SIGTERM and SIGHUP the
+#: handling of Ctrl-C's SIGINT).
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                      if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def interruptions_deferred() -> Iterator[None]:
+    """While inside, SIGINT, SIGTERM and SIGHUP are only noted; on leaving, the handlers of
+    those received run (the interruption they raise comes out of the ``with``), so that work
+    inside (cleaning up, starting a child process and keeping its id) is never left half
+    done. Applies to signals with Python handlers, in the main thread, the only place
+    Python runs them (elsewhere, and for signals ignored or left to the system, nothing
+    changes)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[int] = []
+
+    def note(signum: int, frame: object) -> None:
+        received.append(signum)
+
+    saved: list[tuple[int, Any]] = []
+    try:
+        for signum in _STOP_SIGNALS:
+            handler = signal.getsignal(signum)
+            if callable(handler):
+                saved.append((signum, handler))
+                signal.signal(signum, note)
+        yield
+    finally:
+        _restore_handlers(saved)
+        for signum in dict.fromkeys(received):  # an interruption wins over any other error
+            signal.raise_signal(signum)
+
+
+def _restore_handlers(saved: list[tuple[int, Any]]) -> None:
+    """Put back every handler of ``saved``, even when the first ones put back raise at once
+    (a signal that came as its handler returned)."""
+    if not saved:
+        return
+    try:
+        signal.signal(*saved[0])
+    finally:
+        _restore_handlers(saved[1:])
 
 
 def file_mode() -> int:

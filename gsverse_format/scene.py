@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 
 from .binding import BindResult, bind_local
+from .convert_options import ConvertOptions, ConvertSummary
 from .errors import BindingError, GsverseError, UsageError
 from .io.mesh import read_mesh
 from .io.registry import FRAMES
@@ -50,11 +51,6 @@ from .model import (
 from .progress import Progress
 from .transform import rotate_mesh
 
-# The pipeline's ConvertOptions and ConvertSummary are typed Any here: the pipeline imports
-# this module, so importing them back would be a cycle.
-ConvertOptions = Any
-ConvertSummary = Any
-
 __all__ = [
     "anchor_scene",
     "bind_scene",
@@ -68,9 +64,9 @@ __all__ = [
 ]
 
 
-def object_name(path: str) -> str:
+def object_name(path: str | os.PathLike[str]) -> str:
     """The name of the object a mesh file holds: its file stem."""
-    return os.path.splitext(os.path.basename(path.rstrip(os.sep)))[0] or "object"
+    return os.path.splitext(os.path.basename(os.fspath(path).rstrip(os.sep)))[0] or "object"
 
 
 def distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:

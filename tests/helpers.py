@@ -153,3 +153,28 @@ def anchor_foot_points(prim, vertices: np.ndarray) -> np.ndarray:
     tri = tri[a.face_index.astype(np.intp)]
     b = a.barycentrics.astype(np.float64)
     return (1 - b[:, :1] - b[:, 1:]) * tri[:, 0] + b[:, :1] * tri[:, 1] + b[:, 1:] * tri[:, 2]
+
+
+def fuzz_module(name: str):
+    """The module ``fuzz.<name>`` of this checkout's fuzz harness (``fuzz/`` is run as
+    ``python -m fuzz.fuzz_readers`` from the checkout and installed nowhere), imported from
+    its file: the package is registered under its own name, ``sys.path`` stays as it is (so
+    that no test sees the checkout's ``converters``/``validators`` folders as top-level
+    packages)."""
+    import importlib
+    import importlib.util
+    import pathlib
+    import sys
+
+    folder = pathlib.Path(__file__).resolve().parents[1] / "fuzz"
+    package = sys.modules.get("fuzz")
+    if package is None:
+        spec = importlib.util.spec_from_file_location(
+            "fuzz", folder / "__init__.py", submodule_search_locations=[str(folder)])
+        assert spec is not None and spec.loader is not None
+        package = importlib.util.module_from_spec(spec)
+        sys.modules["fuzz"] = package
+        spec.loader.exec_module(package)
+    if [pathlib.Path(p).resolve() for p in getattr(package, "__path__", [])] != [folder]:
+        raise ImportError(f"another package named fuzz is loaded: {package!r}")
+    return importlib.import_module(f"fuzz.{name}")

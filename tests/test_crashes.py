@@ -6,22 +6,24 @@ from __future__ import annotations
 import base64
 import json
 import pathlib
-import sys
 
 import numpy as np
 import pytest
 
-ROOT = pathlib.Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from gsverse_format.codes import Code
+from gsverse_format.errors import GsverseError
+from gsverse_format.io.gltf import accessors as gltf_accessors
+from gsverse_format.io.gltf import read_gltf, read_gltf_triangles
+from gsverse_format.model import SplatCloud
+from gsverse_format.validators import cli
+from gsverse_format.validators.validate import validate_file
 
-from fuzz import fuzz_readers as fz  # noqa: E402
-from gsverse_format.codes import Code  # noqa: E402
-from gsverse_format.errors import GsverseError  # noqa: E402
-from gsverse_format.io.gltf import accessors as gltf_accessors  # noqa: E402
-from gsverse_format.io.gltf import read_gltf, read_gltf_triangles  # noqa: E402
-from gsverse_format.model import SplatCloud  # noqa: E402
-from gsverse_format.validators import cli  # noqa: E402
-from gsverse_format.validators.validate import validate_file  # noqa: E402
+from helpers import fuzz_module
+
+fz = fuzz_module("fuzz_readers")
+#: Seconds the fuzz harness gives each target here: these tests are about outcomes, not speed,
+#: so a busy machine (a USD child starting a fresh interpreter) must not make a read a hang.
+NO_HANG_LIMIT = 600.0
 
 
 class Injected(KeyError):
@@ -117,7 +119,7 @@ def test_validator_cli_boundary_names_the_exception(seed_files, monkeypatch, cap
 
 
 def test_fuzz_harness_counts_a_gltf_bug_as_a_crash(seed_files, broken_accessors, tmp_path):
-    fuzzer = fz.Fuzzer(str(tmp_path))
+    fuzzer = fz.Fuzzer(str(tmp_path), timeout=NO_HANG_LIMIT)
     fuzzer.run_one(".glb", seed_files[".glb"].read_bytes())
     crashes = _crash_targets(fuzzer)
     assert set(crashes) == {"read_gltf", "validate"}
@@ -138,7 +140,7 @@ def test_ply_reader_lets_a_bug_propagate(seed_files, broken_model):
 
 
 def test_fuzz_harness_counts_a_ply_bug_as_a_crash(seed_files, broken_model, tmp_path):
-    fuzzer = fz.Fuzzer(str(tmp_path))
+    fuzzer = fz.Fuzzer(str(tmp_path), timeout=NO_HANG_LIMIT)
     fuzzer.run_one(".ply", seed_files[".ply"].read_bytes())
     crashes = _crash_targets(fuzzer)
     assert "read_splat_ply" in crashes and crashes["read_splat_ply"].startswith("Injected: ")
@@ -173,7 +175,8 @@ def test_fuzz_harness_counts_a_usd_bug_as_a_crash(tmp_path, monkeypatch, usd):
     write_usd(local_asset(), good)
     monkeypatch.setattr(isolation, "CHILD_CODE", BROKEN_READER + isolation.CHILD_CODE)
     monkeypatch.setattr(fz, "USD_WORKER_CODE", BROKEN_READER + fz.USD_WORKER_CODE)
-    fuzzer = fz.Fuzzer(str(tmp_path / "work"), targets=fz.make_targets(usd))
+    fuzzer = fz.Fuzzer(str(tmp_path / "work"), timeout=NO_HANG_LIMIT,
+                       targets=fz.make_targets(usd))
     (tmp_path / "work").mkdir()
     try:
         fuzzer.run_one(".usda", good.read_bytes())

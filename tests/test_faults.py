@@ -457,3 +457,135 @@ def test_temporary_names(tmp_path):
     for name in ("a.glb", ".a.glb", ".tmp-abc.glb", ".a.glb.gsverse-tmp-", ".a.gsverse-tmp-1-2-3"):
         assert not atomic.is_temporary(name)
     assert socket.gethostname()  # the host part is derived from it
+
+
+# --------------------------------------------------------------------- interruption windows
+# Where a signal lands is a matter of timing in the signal tests above; here each window is
+# reached on purpose: the call that opens it does its work, then SIGINT comes, and its
+# handler runs at the first point CPython runs handlers, as after a system call returns.
+
+def _then_interrupted(function):
+    def call(*args, **kwargs):
+        result = function(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)
+        return result
+    return call
+
+
+@pytest.fixture
+def sigint_raises():
+    """SIGINT raises KeyboardInterrupt here, as in any interactive Python, whatever this test
+    run inherited (started in a shell's background or under nohup, it has SIGINT ignored)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_interruption_as_the_temporary_file_is_made_leaves_nothing(existing, tmp_path,
+                                                                   monkeypatch, sigint_raises):
+    out = tmp_path / "a.glb"
+    if existing:
+        out.write_bytes(b"old output")
+    monkeypatch.setattr(os, "open", _then_interrupted(os.open))  # either call may make it
+    monkeypatch.setattr(atomic, "open", _then_interrupted(open), raising=False)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.atomic_write(out) as handle:
+            handle.write(b"new output")
+    assert os.listdir(tmp_path) == (["a.glb"] if existing else [])
+    assert not existing or out.read_bytes() == b"old output"
+    assert not atomic._LIVE
+
+
+def test_interruption_as_the_temporary_folder_is_made_leaves_nothing(tmp_path, monkeypatch,
+                                                                   sigint_raises):
+    monkeypatch.setattr(os, "mkdir", _then_interrupted(os.mkdir))
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.temporary_folder(tmp_path / "a.usdz"):
+            pass
+    assert os.listdir(tmp_path) == [] and not atomic._LIVE
+
+
+@pytest.mark.parametrize("existing", [False, True])
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_interruption_during_the_rename_undoes_it(kind, existing, tmp_path, monkeypatch,
+                                                  sigint_raises):
+    """An interruption received while the output is renamed into place is raised just after
+    the rename: the output must then be as it was, so that "no output written" is true."""
+    out = tmp_path / "a.usdc"
+    if existing:
+        out.write_bytes(b"old output")
+    monkeypatch.setattr(os, "replace", _then_interrupted(os.replace))
+    with pytest.raises(KeyboardInterrupt):
+        if kind == "file":
+            with atomic.atomic_write(out) as handle:
+                handle.write(b"new output")
+        else:
+            with atomic.temporary_folder(out, result="asset.usdc") as work:
+                Path(work, "asset.usdc").write_bytes(b"new output")
+    monkeypatch.undo()
+    assert os.listdir(tmp_path) == (["a.usdc"] if existing else [])
+    assert not existing or out.read_bytes() == b"old output"
+    assert str(out) not in atomic.outputs_written() and not atomic._LIVE
+
+
+def test_a_completed_write_is_recorded_and_leaves_no_backup(tmp_path):
+    out = tmp_path / "a.glb"
+    for content in (b"first", b"second"):
+        with atomic.atomic_write(out) as handle:
+            handle.write(content)
+        assert os.listdir(tmp_path) == ["a.glb"] and out.read_bytes() == content
+    with atomic.temporary_folder(out, result="x") as work:
+        Path(work, "x").write_bytes(b"third")
+    assert os.listdir(tmp_path) == ["a.glb"] and out.read_bytes() == b"third"
+    assert atomic.outputs_written()[-3:] == [str(out)] * 3
+
+
+def test_interruptions_deferred_raises_on_leaving(sigint_raises):
+    seen = []
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.interruptions_deferred():
+            signal.raise_signal(signal.SIGINT)
+            seen.append("still running")
+    assert seen == ["still running"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    with atomic.interruptions_deferred():  # nothing received: nothing raised
+        pass
+
+
+@pytest.mark.parametrize("window", ["probe", "folder", "child"])
+def test_interruption_as_the_usd_child_starts_leaves_no_folder_and_no_child(
+        window, tmp_path, monkeypatch, sigint_raises):
+    """The parent's first look at the temporary folder (Python writes and removes a probe file
+    there), the child's private folder, the child process: an interruption as each comes into
+    being leaves nothing in the temporary folder, and no child running."""
+    import tempfile
+
+    from gsverse_format.io.usd import isolation
+
+    usd = tmp_path / "a.usda"
+    write_usd(SplatAsset([SplatPrimitive(random_splats(50, seed=1, sh_degree=0), None, "s")]),
+              usd)
+    work = tmp_path / "tmp"
+    work.mkdir()
+    monkeypatch.setenv("TMPDIR", str(work))
+    monkeypatch.setattr(tempfile, "tempdir", None)  # looked for (and probed) again
+    children: list[subprocess.Popen] = []
+    start = subprocess.Popen
+
+    def popen(*args, **kwargs):
+        children.append(start(*args, **kwargs))
+        return children[-1]
+    if window == "probe":
+        monkeypatch.setattr(os, "open", _then_interrupted(os.open))
+    elif window == "folder":
+        monkeypatch.setattr(os, "mkdir", _then_interrupted(os.mkdir))
+    else:
+        monkeypatch.setattr(isolation.subprocess, "Popen", _then_interrupted(popen))
+    with pytest.raises(KeyboardInterrupt):
+        isolation.read_isolated(str(usd), None)
+    monkeypatch.undo()
+    assert os.listdir(work) == []
+    assert len(children) == (window == "child")
+    for child in children:  # the interruption came as the child started: it was ended
+        assert child.returncode is not None

@@ -342,7 +342,7 @@ def test_ply_output_does_not_claim_anchored_splats(tmp_path):
 
 
 @pytest.mark.parametrize("args, status, kind", [
-    (["missing.ply", "o.glb"], 2, "usage"),
+    (["missing.ply", "o.glb"], 1, "input"),
     (["bad.ply", "o.glb"], 1, "input"),
     (["a.ply", "b.ply", "--output-dir", "out", "--jobs", "0"], 2, "usage"),
 ])

@@ -130,13 +130,13 @@ def test_scene_max_distance_is_per_object_and_drop(scene):
     assert [p.name for p in read_gltf(out).primitives] == ["fox", "chair"]
 
 
-def test_single_mesh_output_is_unchanged(tmp_path):
+def test_single_mesh_output_is_unchanged(tmp_path, example_asset):
     """One --mesh writes exactly what it always did: the example asset, byte for byte."""
     capsule = ROOT / "examples" / "capsule"
     out = tmp_path / "anchored.glb"
     assert main([str(capsule / "splats.ply"), str(out), "--mesh", str(capsule / "mesh.obj"),
                  "-q"]) == 0
-    assert out.read_bytes() == (capsule / "anchored.glb").read_bytes()
+    assert out.read_bytes() == example_asset.read_bytes()
     listed = tmp_path / "listed.glb"
     convert(capsule / "splats.ply", listed, ConvertOptions(meshes=[str(capsule / "mesh.obj")]))
     assert listed.read_bytes() == out.read_bytes()

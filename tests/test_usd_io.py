@@ -43,7 +43,7 @@ from gsverse_format.io.usd import (USD_SUFFIXES, BakedPoses, UsdInternalError,  
                                    UsdReadWarning, check_usd, load_poses, read_usd, write_usd)
 from gsverse_format.model import (Anchoring, SplatAsset, SplatCloud,  # noqa: E402
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap_reference import remap  # noqa: E402
+from gsverse_format.remapping.reference import remap  # noqa: E402
 from gsverse_format.transform import rotate_mesh, rotate_splats  # noqa: E402
 
 from usd_validation_assets import BROKEN_READER  # noqa: E402
@@ -704,7 +704,7 @@ def test_cli_bake_poses_errors(tmp_path, example):
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.usda"), "--bake-poses", str(unsorted)],
          "strictly increasing", 1, unsorted),
         ([str(tmp_path / "in.glb"), str(tmp_path / "o.usda"), "--bake-poses",
-          str(tmp_path / "none.npz")], "file not found", 2, tmp_path / "none.npz"),
+          str(tmp_path / "none.npz")], "file not found", 1, tmp_path / "none.npz"),
         ([str(plain), str(tmp_path / "o.usda"), "--bake-poses", str(good)],
          "exactly one mesh", 2, plain),
     ]

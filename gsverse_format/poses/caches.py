@@ -128,10 +128,11 @@ def sequence_files(spec: str) -> list[str]:
     return sorted(files, key=natural_key)
 
 
-def read_sequence(spec: str, fps: float = 24.0) -> VertexCache:
+def read_sequence(spec: str | os.PathLike[str], fps: float = 24.0) -> VertexCache:
     """A vertex cache from one mesh file per frame (see the module docstring)."""
     from ..io.mesh import read_mesh
 
+    spec = os.fspath(spec)
     files = sequence_files(spec)
     frames: list[np.ndarray] = []
     for f in files:

@@ -68,11 +68,13 @@ class CacheSource:
         return self._cache().duration()
 
 
-def open_source(spec: str, *, animation: int | str | None = 0, fps: float = 24.0) -> Source:
+def open_source(spec: str | os.PathLike[str], *, animation: int | str | None = 0,
+                fps: float = 24.0) -> Source:
     """Open ``spec`` by what it is: ``.glb``/``.gltf`` (skin, morph targets, animation),
     ``.npz`` (vertex cache), ``.exr`` (VAT; read when matched, since offsets need the rest
     pose), a folder or a glob pattern (mesh sequence), or a single ``.obj``/``.ply`` frame.
     ``fps`` spaces frames that carry no times. :class:`UsageError` for anything else."""
+    spec = os.fspath(spec)
     ext = os.path.splitext(spec)[1].lower()
     if ext in (".glb", ".gltf") and os.path.isfile(spec):
         return open_gltf_source(spec, animation, prefer_anchor=True)

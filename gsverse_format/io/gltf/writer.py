@@ -292,7 +292,7 @@ def _rest_pose_of(c: SplatCloud, mesh: TriangleMesh, encoded: _EncodedAnchors) -
     the rest pose) the splats unchanged."""
     if encoded.barycentrics is None and encoded.local_rotation is None:
         return c
-    from ...remap_reference import remap
+    from ...remapping.reference import remap
 
     rest = remap(Anchoring(mesh, encoded.anchors))
     return SplatCloud(rest.means.astype(np.float32), rest.rotations.astype(np.float32),

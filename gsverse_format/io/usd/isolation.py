@@ -12,24 +12,30 @@ overflow on deeply nested prims, an abort on corrupt ``.usdc`` data) is a :class
 writes to ``TMPDIR`` lands in the child's private temporary folder, removed with it. Any
 other unexpected exception in the child is a bug, not bad input, and comes back as a
 :class:`UsdInternalError` naming its type. When the parent is interrupted (Ctrl-C, or
-SIGTERM/SIGHUP under the command-line tools) the child is killed and the folder removed.
+SIGTERM/SIGHUP under the command-line tools) the child is killed and waited for and the
+folder removed, wherever the interruption lands (as the folder or the child comes into
+being, while the child runs, while the folder is removed).
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pathlib
+import secrets
+import shutil
 import signal
 import subprocess
 import sys
 import tempfile
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from importlib import resources
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
+from ...atomic import interruptions_deferred
 from ...errors import FormatError, GsverseError, UsageError
 from ...limits import USD_CHILD_MEMORY_BASE, usd_child_seconds
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
@@ -95,40 +101,34 @@ def _run(mode: str, spath: str, timeout: float | None) -> dict[str, Any]:
     package_root = str(pathlib.Path(str(resources.files("gsverse_format"))).parent)
     env["PYTHONPATH"] = package_root + (os.pathsep + env["PYTHONPATH"]
                                         if env.get("PYTHONPATH") else "")
-    with tempfile.TemporaryDirectory(prefix="gsverse-usd-") as work:
+    with _private_folder() as work:
         out = os.path.join(work, "result")
         # The child's temporary folder is this private one: USD writes its crash report
         # (st_python.<pid>) to TMPDIR, and it goes with the folder.
         env["TMPDIR"] = os.path.join(work, "tmp")
         os.mkdir(env["TMPDIR"])
-        try:
-            with open(os.path.join(work, "stderr"), "w+b") as err_file:
-                proc = subprocess.run(
-                    [sys.executable, "-c", CHILD_CODE, mode, os.path.abspath(spath), out],
-                    env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                    stderr=err_file, timeout=timeout,
-                    preexec_fn=child_limits(memory) if os.name == "posix" else None)
-                err_file.seek(max(0, err_file.seek(0, os.SEEK_END) - _STDERR_TAIL))
-                stderr = err_file.read()
-        except subprocess.TimeoutExpired:
-            raise FormatError(f"reading the USD file took longer than {timeout:g} s",
-                              spath) from None
+        with open(os.path.join(work, "stderr"), "w+b") as err_file:
+            returncode = _run_child(
+                [sys.executable, "-c", CHILD_CODE, mode, os.path.abspath(spath), out], env,
+                err_file, memory, timeout, spath)
+            err_file.seek(max(0, err_file.seek(0, os.SEEK_END) - _STDERR_TAIL))
+            stderr = err_file.read()
         try:
             with open(out + ".json", encoding="utf-8") as handle:
                 result = json.load(handle)
         except (OSError, ValueError):
             result = None
         if result is None:
-            if proc.returncode < 0:
+            if returncode < 0:
                 try:
-                    name = signal.Signals(-proc.returncode).name
+                    name = signal.Signals(-returncode).name
                 except ValueError:
-                    name = f"signal {-proc.returncode}"
+                    name = f"signal {-returncode}"
                 raise FormatError(f"corrupt USD file: the USD library crashed reading it "
                                   f"({name})", spath)
             tail = stderr.decode("utf-8", "replace").strip().splitlines()
             raise FormatError(f"corrupt USD file: the USD library failed reading it (exit "
-                              f"code {proc.returncode}"
+                              f"code {returncode}"
                               f"{': ' + tail[-1][:200] if tail else ''})", spath)
         if not result["ok"]:
             if result["error"] == "internal":
@@ -138,6 +138,58 @@ def _run(mode: str, spath: str, timeout: float | None) -> dict[str, Any]:
         if "asset" in result:
             result["asset"] = _load_asset(out + ".npz", result["asset"])
         return result
+
+
+@contextlib.contextmanager
+def _private_folder() -> Iterator[str]:
+    """A new folder (``gsverse-usd-*``, mode 0700) in the temporary folder, removed with
+    everything in it on leaving, however the block ends: an interruption included, also one
+    raised just as the folder came into being, and one received while it is removed."""
+    with interruptions_deferred():  # its first call writes and removes a probe file there
+        base = tempfile.gettempdir()
+    work = os.path.join(base, f"gsverse-usd-{secrets.token_hex(8)}")
+    try:
+        os.mkdir(work, 0o700)
+    except OSError:
+        raise  # not made (a name taken, no temporary folder): nothing of ours to remove
+    except BaseException:
+        _remove_folder(work)
+        raise
+    try:
+        yield work
+    finally:
+        _remove_folder(work)
+
+
+def _remove_folder(work: str) -> None:
+    with interruptions_deferred():
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _run_child(cmd: list[str], env: dict[str, str], err_file: IO[bytes], memory: int,
+               timeout: float, spath: str) -> int:
+    """Run the child ``cmd`` to its end and return its exit status (negative: the signal
+    that ended it); past ``timeout`` seconds a :class:`FormatError`. However this ends (an
+    interruption of the parent included) the child is ended and waited for before this
+    returns or raises, so nothing writes into its folder any more: it is started with
+    interruptions deferred, so that its process id is never lost, and stopped the same way."""
+    proc: subprocess.Popen[bytes] | None = None
+    try:
+        with interruptions_deferred():
+            proc = subprocess.Popen(
+                cmd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=err_file, preexec_fn=child_limits(memory) if os.name == "posix" else None)
+        try:
+            return proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            raise FormatError(f"reading the USD file took longer than {timeout:g} s",
+                              spath) from None
+    finally:
+        if proc is not None:
+            with interruptions_deferred():
+                if proc.poll() is None:
+                    proc.kill()
+                proc.wait()
 
 
 def read_isolated(spath: str, timeout: float | None) -> tuple[SplatAsset, list[UsdProblem]]:

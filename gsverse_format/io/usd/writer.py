@@ -152,7 +152,7 @@ def _define_splats(px: types.SimpleNamespace, stage, path, prim: SplatPrimitive,
 def _bake(px: types.SimpleNamespace, stage, poses: BakedPoses, mesh_schema,
           splat_prims: list[tuple[SplatPrimitive, Any]]) -> None:
     """Time samples of the remap at every pose (spec/usd.md §Baked animation)."""
-    from ...remap_reference import prepare_rest, remap
+    from ...remapping.reference import prepare_rest, remap
 
     Vt = px.Vt
     times = [float(t) for t in poses.times]
@@ -248,24 +248,23 @@ def _check_protect(path: str, protect: Iterable) -> None:
 
 def _save(px: types.SimpleNamespace, layer, path: str, ext: str) -> None:
     """Export ``layer`` atomically: a temporary folder beside the target (named and cleaned
-    up as :mod:`gsverse_format.atomic` names them), then a rename."""
+    up as :mod:`gsverse_format.atomic` names them), whose result file is committed into place by
+    the same step as every atomic write (interruptions included)."""
     mode = file_mode()
+    name = "package.usdz" if ext == ".usdz" else "asset" + ext
     try:
-        with temporary_folder(path) as work:
+        with temporary_folder(path, result=name) as work:
+            result = os.path.join(work, name)
             if ext == ".usdz":
                 stem = os.path.splitext(os.path.basename(path))[0]
                 inner = os.path.join(work, px.Tf.MakeValidIdentifier(stem or "asset") + ".usdc")
-                result = os.path.join(work, "package.usdz")
                 if not layer.Export(inner):
                     raise GsverseError("cannot write the USD layer", path)
                 if not px.UsdUtils.CreateNewUsdzPackage(px.Sdf.AssetPath(inner), result):
                     raise GsverseError("cannot create the USDZ package", path)
-            else:
-                result = os.path.join(work, "asset" + ext)
-                if not layer.Export(result):
-                    raise GsverseError("cannot write the USD layer", path)
+            elif not layer.Export(result):
+                raise GsverseError("cannot write the USD layer", path)
             os.chmod(result, mode)
-            os.replace(result, path)
     except GsverseError:
         raise
     except OSError as err:
