@@ -47,7 +47,7 @@ from gsverse_format.io.mesh import read_mesh
 from gsverse_format.io.ply import read_splat_ply
 from gsverse_format.io.registry import FRAMES, Z_UP_TO_GLTF
 from gsverse_format.model import Anchoring, GamesAnchors, SplatCloud, TriangleMesh
-from gsverse_format.remap_reference import RemapResult, remap
+from gsverse_format.remapping.reference import RemapResult, remap
 from gsverse_format.tolerances import mesh_extent, rest_mean_tolerance
 from gsverse_format.transform import rotate_mesh, rotate_splats
 
@@ -341,6 +341,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     input_path = os.fspath(input_path)
     ply, folders, notes = _locate(input_path)
 
+    params_path: str | None
     if options.pt_path is not None:
         params_path = os.fspath(options.pt_path)
         if not os.path.isfile(params_path):
@@ -357,6 +358,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     params = _read_params(params_path)
     notes.append(f"GaMeS parameters from {os.path.basename(params_path)}")
 
+    mesh_name: str | None
     if params.mesh is not None:
         mesh, mesh_name = params.mesh, params_path
         notes.append("anchor mesh = the trained vertices and faces of the checkpoint"

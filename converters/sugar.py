@@ -46,7 +46,7 @@ from gsverse_format.frames import local_frames
 from gsverse_format.io.mesh import read_mesh
 from gsverse_format.io.ply import describe_ply, read_splat_ply
 from gsverse_format.model import Anchoring, DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 from gsverse_format.tolerances import mesh_extent, rest_mean_tolerance
 
 __all__ = ["SLOT_BARYCENTRICS", "load", "detect", "matches_layout", "slot_barycentrics",
@@ -109,7 +109,7 @@ def rest_errors(splats: SplatCloud, mesh: TriangleMesh, anchors: LocalAnchors) -
     At rest the ``local`` remap reduces to mean = v0 + b1 e1 + b2 e2 + d n_r and rotation
     R_r R_l with scale s_l (G = I, k = 1, both laws), evaluated here in float64 from the stored
     float32 anchors without the per-splat SVD; splats on faces degenerate at rest, where the
-    spec's fallback applies, go through :func:`gsverse_format.remap_reference.remap`. Returns
+    spec's fallback applies, go through :func:`gsverse_format.remapping.reference.remap`. Returns
     ``max_mean_error`` (scene units), ``max_mean_error_rel`` (÷ the mesh's bounding-box diagonal)
     and ``max_cov_rel_error`` (max over splats of ‖ΔΣ‖_F / ‖Σ‖_F).
     """

@@ -385,14 +385,17 @@ static void gsv__corners(const float *vertices, const uint32_t *indices, size_t 
     *v0 = vertices + 3 * i0; *v1 = vertices + 3 * i1; *v2 = vertices + 3 * i2;
 }
 
-/* Rest quantities of one triangle in double precision, whatever gsv_real is (spec Outputs,
+/* The rest frame of one triangle in double precision, whatever gsv_real is (spec Outputs,
    precision and epsilons: rest quantities in binary64 from the stored float32 values). The
-   classification and C_r follow Triangle frames exactly: t = e1 / |e1|, C_r = [[p, q], [0, h]]
-   with p = |e1|, q = e2 . t, h = a / |e1|. Returns 1 for a triangle regular at rest. */
-static int gsv__rest_double(const float *v0, const float *v1, const float *v2, double inv[4],
-                            double *area2, double *inv_sqrt_area2) {
-    double e1[3], e2[3], e3[3], cr[3], t[3];
-    double s1, s2, s3, longest2, a, p, q, h;
+   classification, R_r and C_r follow Triangle frames exactly: t = e1 / |e1|, n = (e1 x e2) / a,
+   b = n x t, C_r = [[p, q], [0, h]] with p = |e1|, q = e2 . t, h = a / |e1|. Sets *area2 = a
+   for every triangle; for a triangle regular at rest returns 1 and sets r (row-major, columns
+   t, b, n) and c = (p, q, h), otherwise returns 0 and leaves r and c unset. The one rest frame
+   of the local profile: gsv_prepare_rest and gsv_derive_local both use it. */
+static int gsv__rest_frame_double(const float *v0, const float *v1, const float *v2,
+                                  double r[9], double c[3], double *area2) {
+    double e1[3], e2[3], e3[3], cr[3], t[3], b[3], n[3];
+    double s1, s2, s3, longest2, a, p;
     int i;
     for (i = 0; i < 3; ++i) {
         e1[i] = (double)v1[i] - (double)v0[i];
@@ -409,19 +412,34 @@ static int gsv__rest_double(const float *v0, const float *v1, const float *v2, d
     longest2 = s1 > s2 ? s1 : s2;
     if (s3 > longest2) longest2 = s3;
     *area2 = a;
-    if (!(a > GSV_EPS_DEGENERATE * longest2)) {
+    if (!(a > GSV_EPS_DEGENERATE * longest2)) return 0;
+    p = sqrt(s1);
+    for (i = 0; i < 3; ++i) { t[i] = e1[i] / p; n[i] = cr[i] / a; }
+    b[0] = n[1] * t[2] - n[2] * t[1];
+    b[1] = n[2] * t[0] - n[0] * t[2];
+    b[2] = n[0] * t[1] - n[1] * t[0];
+    for (i = 0; i < 3; ++i) { r[3 * i] = t[i]; r[3 * i + 1] = b[i]; r[3 * i + 2] = n[i]; }
+    c[0] = p;
+    c[1] = e2[0] * t[0] + e2[1] * t[1] + e2[2] * t[2];
+    c[2] = a / p;
+    return 1;
+}
+
+/* The rest quantities of one triangle that the remap uses, in double precision: C_r^-1 (the
+   identity on a triangle degenerate at rest), a_r and 1 / sqrt(a_r). Returns 1 for a triangle
+   regular at rest. */
+static int gsv__rest_double(const float *v0, const float *v1, const float *v2, double inv[4],
+                            double *area2, double *inv_sqrt_area2) {
+    double r[9], c[3];
+    if (!gsv__rest_frame_double(v0, v1, v2, r, c, area2)) {
         inv[0] = 1; inv[1] = 0; inv[2] = 0; inv[3] = 1;
         *inv_sqrt_area2 = 1;
         return 0;
     }
-    p = sqrt(s1);
-    for (i = 0; i < 3; ++i) t[i] = e1[i] / p;
-    q = e2[0] * t[0] + e2[1] * t[1] + e2[2] * t[2];
-    h = a / p;
     /* C_r^-1 = [[1/p, -q/(p h)], [0, 1/h]] */
-    inv[0] = 1 / p; inv[1] = -q / (p * h);
-    inv[2] = 0; inv[3] = 1 / h;
-    *inv_sqrt_area2 = 1 / sqrt(a);
+    inv[0] = 1 / c[0]; inv[1] = -c[1] / (c[0] * c[2]);
+    inv[2] = 0; inv[3] = 1 / c[2];
+    *inv_sqrt_area2 = 1 / sqrt(*area2);
     return 1;
 }
 
@@ -870,46 +888,28 @@ static void gsv__matrix_to_quat_d(const double m[9], double q[4]) {
 GSV_API int gsv_derive_local(const float *rest_vertices, const uint32_t *indices, size_t n,
                              const uint32_t *face, const float *means, const float *rotations,
                              float *bary, float *offset, float *rotation) {
+    double r[9], c[3], qr[4], area2;
+    const float *v0 = NULL, *v1, *v2;
     size_t s;
     for (s = 0; s < n; ++s) {
-        const float *v0, *v1, *v2;
         const float *q = rotations + 4 * s;
-        double e1[3], e2[3], e3[3], cr[3], t[3], b[3], nn[3], rel[3], r[9], qr[4], qq[4];
-        double s1, s2, s3, longest2, a, l1, c01, c11, x, y, z, b2, len;
+        double rel[3], qq[4], x, y, z, b2, len;
         int i;
-        gsv__corners(rest_vertices, indices, face[s], &v0, &v1, &v2);
-        for (i = 0; i < 3; ++i) {
-            e1[i] = (double)v1[i] - (double)v0[i];
-            e2[i] = (double)v2[i] - (double)v0[i];
-            e3[i] = e2[i] - e1[i];
-            rel[i] = (double)means[3 * s + i] - (double)v0[i];
+        /* the face's rest frame (gsv_prepare_rest's), once per run of splats on one face */
+        if (s == 0 || face[s] != face[s - 1]) {
+            gsv__corners(rest_vertices, indices, face[s], &v0, &v1, &v2);
+            if (!gsv__rest_frame_double(v0, v1, v2, r, c, &area2)) return 0;
+            gsv__matrix_to_quat_d(r, qr);
         }
-        cr[0] = e1[1] * e2[2] - e1[2] * e2[1];
-        cr[1] = e1[2] * e2[0] - e1[0] * e2[2];
-        cr[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        a = sqrt(cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]);
-        s1 = e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2];
-        s2 = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2];
-        s3 = e3[0] * e3[0] + e3[1] * e3[1] + e3[2] * e3[2];
-        longest2 = s1 > s2 ? s1 : s2;
-        if (s3 > longest2) longest2 = s3;
-        if (!(a > GSV_EPS_DEGENERATE * longest2)) return 0;
-        l1 = sqrt(s1);
-        for (i = 0; i < 3; ++i) { t[i] = e1[i] / l1; nn[i] = cr[i] / a; }
-        b[0] = nn[1] * t[2] - nn[2] * t[1];
-        b[1] = nn[2] * t[0] - nn[0] * t[2];
-        b[2] = nn[0] * t[1] - nn[1] * t[0];
-        c01 = e2[0] * t[0] + e2[1] * t[1] + e2[2] * t[2];
-        c11 = a / l1;
-        x = rel[0] * t[0] + rel[1] * t[1] + rel[2] * t[2];
-        y = rel[0] * b[0] + rel[1] * b[1] + rel[2] * b[2];
-        z = rel[0] * nn[0] + rel[1] * nn[1] + rel[2] * nn[2];
-        b2 = y / c11;
-        bary[2 * s] = (float)((x - c01 * b2) / l1);
+        for (i = 0; i < 3; ++i) rel[i] = (double)means[3 * s + i] - (double)v0[i];
+        /* (x, y, z) = R_r^T (mu - v0): the dot products with the columns t, b, n */
+        x = rel[0] * r[0] + rel[1] * r[3] + rel[2] * r[6];
+        y = rel[0] * r[1] + rel[1] * r[4] + rel[2] * r[7];
+        z = rel[0] * r[2] + rel[1] * r[5] + rel[2] * r[8];
+        b2 = y / c[2];
+        bary[2 * s] = (float)((x - c[1] * b2) / c[0]);
         bary[2 * s + 1] = (float)b2;
         offset[s] = (float)z;
-        for (i = 0; i < 3; ++i) { r[3 * i] = t[i]; r[3 * i + 1] = b[i]; r[3 * i + 2] = nn[i]; }
-        gsv__matrix_to_quat_d(r, qr);
         len = sqrt((double)q[0] * q[0] + (double)q[1] * q[1] + (double)q[2] * q[2]
                    + (double)q[3] * q[3]);
         for (i = 0; i < 4; ++i) qq[i] = len > 0 ? (double)q[i] / len : (i == 3 ? 1.0 : 0.0);

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import gsverse_format.quaternion as quaternion
-import gsverse_format.remap_reference as remap_module
+import gsverse_format.remapping.reference as remap_module
 from gsverse_format import frames as frames_module
 from gsverse_format.conformance import cases as case_defs
 from gsverse_format.conformance import invalid_cases as invalid_defs
@@ -138,7 +138,9 @@ def test_suite_covers_valid_encodings(suite, manifests):
     for cid in ("invalid-local-rotation-zero", "invalid-local-scale-negative",
                 "invalid-non-finite-rest-position", "invalid-non-finite-rest-rotation",
                 "invalid-non-finite-rest-scale", "invalid-splat-primitive-not-points",
-                "invalid-anchor-mesh-multiple-instances"):
+                "invalid-anchor-mesh-multiple-instances", "invalid-splat-primitive-mode-absent",
+                "invalid-anchor-mesh-instance-outside-scenes",
+                "invalid-anchor-accessor-no-buffer-view"):
         assert cid in invalid
 
 
@@ -185,7 +187,7 @@ def test_expected_outputs_are_the_reference_on_the_stored_values(suite, manifest
     """Spot check: expected arrays equal the float64 reference on the file's anchors and the
     float32 pose, and pose 0 (the rest) reproduces the stored rest pose."""
     from gsverse_format.io.gltf import read_gltf
-    from gsverse_format.remap_reference import remap
+    from gsverse_format.remapping.reference import remap
 
     for cid in ("local-affine-quantized-bary-u8-rot-i16", "games-offset-1e5", "local-rigid-skinned"):
         m = manifests[cid]
@@ -221,7 +223,7 @@ def test_minimal_reader_passes_every_case(suite, tmp_path):
 
 
 def test_fast_path_passes_every_case(suite, tmp_path):
-    fast = pytest.importorskip("gsverse_format.remap_fast")
+    fast = pytest.importorskip("gsverse_format.remapping.fast")
     backend = "numba" if fast.numba_available() else "numpy"
     report = _run(suite, tmp_path / "fast", lambda: FastPlugin(backend))
     assert report.ok, format_text(report)
@@ -599,7 +601,7 @@ def test_broken_lenient_importer_fails_exactly_the_invalid_cases(suite, manifest
 def _naive_rotation_scale_failures(suite: Path, results: Path, manifests: dict) -> set[str]:
     """A checker that compares rotation and scale instead of covariance (wrong: pairs are
     not unique). Reference pairs come from the library's reference remap."""
-    from gsverse_format.remap_reference import remap
+    from gsverse_format.remapping.reference import remap
 
     failed = set()
     for cid, m in manifests.items():

@@ -252,7 +252,7 @@ from gsverse_format import frames as F  # noqa: E402
 from gsverse_format import quaternion  # noqa: E402
 from gsverse_format.conformance.minimal_reader import accessor_allowed, dequantize  # noqa: E402
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh  # noqa: E402
-from gsverse_format.remap_reference import prepare_rest, remap  # noqa: E402
+from gsverse_format.remapping.reference import prepare_rest, remap  # noqa: E402
 
 _CTYPES = (5120, 5121, 5122, 5123, 5125, 5126)
 _RS6 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))

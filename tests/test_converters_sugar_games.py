@@ -16,7 +16,7 @@ from gsverse_format.pipeline import load_source
 from gsverse_format.errors import FormatError
 from gsverse_format.io.ply import read_splat_ply, write_splat_ply
 from gsverse_format.model import Anchoring
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 from gsverse_format.transform import PLY_TO_GLTF, rotate_splats
 
 from helpers import max_rel_cov_error

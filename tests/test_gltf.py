@@ -943,7 +943,7 @@ def test_quantized_anchors_store_their_own_rest_pose(tmp_path, quantize, profile
     """Quantizing moves the splats by about half a step, and the stored rest pose is the remap
     of the anchors as stored (the asset stays self-consistent)."""
     import validation_assets as va
-    from gsverse_format.remap_reference import remap
+    from gsverse_format.remapping.reference import remap
 
     asset = va.local_asset(80) if profile == "local" else va.games_asset(80)
     path = tmp_path / "q.glb"

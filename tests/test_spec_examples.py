@@ -6,7 +6,7 @@ import pytest
 
 from gsverse_format import quaternion as quat
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 
 REST = TriangleMesh([[0, 0, 0], [2, 0, 0], [0, 1, 0]], [[0, 1, 2]])
 SCALE = [[0.125, 0.375, 0.0625]]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ from gsverse_format.validators.validate import validate_file
 import validation_assets as va
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 #: Codes glTF files can trigger (the USD group is tested in test_validate_usd.py).
@@ -206,6 +207,49 @@ def test_max_issues_truncates(folder):
     assert len(report.findings) == 1 and report.issues.truncated
 
 
+def _mixed(folder: pathlib.Path) -> pathlib.Path:
+    """A file whose findings are found in the order warning, warning, hint, info, error: an
+    unknown GLB chunk, a target on an anchor accessor's bufferView, splats out of face order,
+    a floater far from the mesh, a moved rest POSITION."""
+    d = va.Doc.of(va.local_asset(floater=True, shuffle=True))
+    d.doc["bufferViews"][d.doc["accessors"][d.ext()["faceIndex"]]["bufferView"]]["target"] = 34962
+    d.values(d.attr("POSITION"))[5, 0] += 0.05
+    path = folder / "mixed.glb"
+    path.write_bytes(va._append_chunk(d.glb(), 0x12345678, b"abcd"))
+    return path
+
+
+def test_reports_list_errors_then_warnings_infos_hints(folder, capsys):
+    path = _mixed(folder)
+    report = validate_file(path)
+    found = [f.severity for f in report.findings]
+    assert found[0] == Severity.WARNING and found[-1] == Severity.ERROR   # found out of order
+    assert set(found) == set(Severity) and found.count(Severity.WARNING) == 2
+    ordered = report.ordered_findings()
+    assert [f.severity for f in ordered] == sorted(found)
+    for severity in Severity:       # stable: in the order found within a severity
+        assert [f for f in ordered if f.severity == severity] == \
+            [f for f in report.findings if f.severity == severity]
+    expected = [(str(f.code), f.severity.label) for f in ordered]
+    assert cli.main(["--format", "json", str(path)]) == 1
+    messages = json.loads(capsys.readouterr().out)["reports"][0]["issues"]["messages"]
+    assert [(m["code"], m["severity"]) for m in messages] == expected
+    assert cli.main([str(path)]) == 1
+    lines = capsys.readouterr().out.splitlines()[1:]
+    assert [tuple(line.split()[1::-1]) for line in lines] == expected
+
+
+def test_max_issues_keeps_the_most_severe_findings(folder):
+    """A capped report keeps the errors (and so its exit status): the most severe findings,
+    the first found within a severity."""
+    path = _mixed(folder)
+    everything = validate_file(path).ordered_findings()
+    for cap in (1, 2, 4):
+        report = validate_file(path, max_issues=cap)
+        assert report.issues.truncated and report.exit_status == 1
+        assert report.ordered_findings() == everything[:cap]
+
+
 def test_parse_severity():
     assert parse_severity("Warning") == Severity.WARNING
     assert parse_severity("information") == Severity.INFO
@@ -234,6 +278,36 @@ def test_convert_output_validates_clean(tmp_path, suffix, extra, capsys):
     report = validate_file(out)
     assert report.findings == [], [(f.code, f.message) for f in report.findings]
     assert report.info["splats"] == 3000 and report.info["anchoredPrimitives"] == 1
+
+
+def test_far_barycentrics_of_converted_output_are_information_that_needs_nothing(tmp_path):
+    """gsverse-convert binds every splat to its nearest triangle: splats off the surface next
+    to an edge of small triangles get a barycentric weight below -1. That is information, and
+    the catalogue says when it needs nothing and when it points at a real problem, with fixes
+    that exist."""
+    from gsverse_format.cli.convert import build_parser, main as convert
+    from gsverse_format.examples import example_mesh, example_splats, write_obj
+    from gsverse_format.io.ply import write_splat_ply
+
+    mesh = example_mesh(subdivisions=4)
+    cloud = example_splats(mesh, 500, seed=3)
+    outward = cloud.means / np.linalg.norm(cloud.means, axis=1, keepdims=True)
+    cloud.means = (cloud.means + 0.06 * outward).astype(np.float32)      # off the surface
+    write_splat_ply(cloud, tmp_path / "splats.ply")
+    write_obj(mesh, str(tmp_path / "mesh.obj"))
+    out = tmp_path / "out.glb"
+    assert convert([str(tmp_path / "splats.ply"), str(out), "--mesh",
+                    str(tmp_path / "mesh.obj"), "-q"]) == 0
+    report = validate_file(out)
+    assert report.codes() == {Code.LOCAL_BARYCENTRICS_FAR} and report.exit_status == 0
+    (finding,) = report.findings
+    assert finding.severity == Severity.INFO and 0 < finding.count < 500 // 10
+    info = CATALOGUE[Code.LOCAL_BARYCENTRICS_FAR]
+    assert "Expected in converted assets" in info.trigger
+    assert info.fix.startswith("Nothing, for a converted asset, unless ANCHOR_MESH_MISFIT")
+    options = {o for action in build_parser()._actions for o in action.option_strings}
+    named = set(re.findall(r"--[a-z-]+", info.fix))
+    assert named and named <= options, named - options
 
 
 def test_validator_never_writes(folder):
@@ -344,3 +418,47 @@ def test_shared_sample_files_never_fail_internally(shared_data):
     assert matrix.info["splatPrimitives"] == 15
     # Its signed-integer scales are not among the formats KHR_gaussian_splatting allows.
     assert "KHR_ATTRIBUTE_FORMAT" in matrix.codes()
+
+
+# ---------------------------------------------------------------------------- reader rules
+
+def test_every_node_counts_for_multiple_instances_scene_or_not(folder, tmp_path):
+    """spec §The anchor mesh: every entry of nodes that instantiates the anchor mesh counts,
+    whether a scene lists it or not. The validator, the reader and the minimal reader agree."""
+    from gsverse_format.conformance.minimal_reader import Refused, read_anchored_glb
+    from gsverse_format.io.gltf import GltfFormatError, read_gltf
+
+    d = va.Doc.of(va.local_asset())
+    scene_nodes = d.doc["scenes"][0]["nodes"]
+    d.doc["nodes"].append({"mesh": d.ext()["mesh"], "name": "in the scene"})
+    scene_nodes.append(len(d.doc["nodes"]) - 1)
+    one = d.write(folder, "one.glb")
+    d.doc["nodes"].append({"mesh": d.ext()["mesh"], "name": "in no scene"})
+    two = d.write(folder, "two.glb")
+    assert "ANCHOR_MESH_MULTIPLE_INSTANCES" not in validate_file(one).codes()
+    read_gltf(one)
+    read_anchored_glb(one)
+    assert "ANCHOR_MESH_MULTIPLE_INSTANCES" in validate_file(two).codes()
+    with pytest.raises(GltfFormatError) as err:
+        read_gltf(two)
+    assert err.value.code == Code.ANCHOR_MESH_MULTIPLE_INSTANCES
+    with pytest.raises(Refused, match="instantiated by 2 nodes"):
+        read_anchored_glb(two)
+
+
+def test_a_splat_primitive_without_mode_is_triangles_and_refused(folder):
+    """glTF's default mode is TRIANGLES (4): an anchored splat primitive without mode is
+    refused (spec §Where the extension object lives)."""
+    from gsverse_format.conformance.minimal_reader import Refused, read_anchored_glb
+    from gsverse_format.io.gltf import GltfFormatError, read_gltf
+
+    d = va.Doc.of(va.local_asset())
+    del d.prim(0)["mode"]
+    path = d.write(folder, "no-mode.glb")
+    report = validate_file(path)
+    assert "KHR_PRIMITIVE_NOT_POINTS" in report.codes() and report.exit_status == 1
+    with pytest.raises(GltfFormatError) as err:
+        read_gltf(path)
+    assert err.value.code == Code.KHR_PRIMITIVE_NOT_POINTS
+    with pytest.raises(Refused, match="POINTS"):
+        read_anchored_glb(path)

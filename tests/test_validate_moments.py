@@ -7,8 +7,8 @@ from scipy.spatial.transform import Rotation
 
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import (covariance_entries, covariances_from, iter_moments, remap,
-                                  remap_moments)
+from gsverse_format.remapping.reference import (covariance_entries, covariances_from,
+                                               iter_moments, remap, remap_moments)
 
 from helpers import bumpy_sphere, surface_splats
 

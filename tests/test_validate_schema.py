@@ -6,6 +6,7 @@ import json
 import pathlib
 import random
 import struct
+from importlib import resources
 
 import pytest
 
@@ -26,7 +27,16 @@ def _jsonschema_validator():
 
 
 def test_schema_is_the_shipped_one():
-    assert schema() == json.loads((ROOT / "spec" / "schema" / SCHEMA_NAME).read_text())
+    """spec/schema/ holds the extension's schema as a real file (the spec folder stands alone);
+    the package ships the same bytes as package data, which the validator reads. Edit
+    spec/schema/ and copy it to gsverse_format/schema/."""
+    spec = ROOT / "spec" / "schema"
+    shipped = resources.files("gsverse_format") / "schema"
+    assert not (spec / SCHEMA_NAME).is_symlink()
+    assert sorted(p.name for p in spec.iterdir()) == \
+        sorted(p.name for p in shipped.iterdir() if p.name.endswith(".json")) == [SCHEMA_NAME]
+    assert (shipped / SCHEMA_NAME).read_bytes() == (spec / SCHEMA_NAME).read_bytes()
+    assert schema() == json.loads((spec / SCHEMA_NAME).read_text(encoding="utf-8"))
 
 
 _VALUES = [0, 1, 7, -1, 2.5, "1", None, True, [], {}, "local", "games", "affine", "rigid",

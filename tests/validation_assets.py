@@ -24,7 +24,7 @@ from gsverse_format.examples import example_mesh, example_splats
 from gsverse_format.io.gltf import asset_to_gltf
 from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 from gsverse_format.rig import AnchorRig, RigAnimation, RigChannel, RigNode
 
 KHR = "KHR_gaussian_splatting"

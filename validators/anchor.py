@@ -5,7 +5,7 @@ The anchor mesh is checked once per anchor primitive (mode, positions, indices; 
 sliver and duplicate triangles). For every anchored splat primitive the anchor accessors are
 checked against the spec's format table (``gsverse_format.vocabulary.ANCHOR_FIELDS``),
 their values per profile, and finally the reference remap at the rest mesh
-(:func:`gsverse_format.remap_reference.iter_moments`) is compared with the stored rest pose.
+(:func:`gsverse_format.remapping.reference.iter_moments`) is compared with the stored rest pose.
 """
 from __future__ import annotations
 

@@ -1,24 +1,21 @@
-"""Catalogue entries of the compact anchor encodings (spec/README.md §Properties,
-`faceCounts` and §Derived `local` anchors, version 1.2): (code, severity name, group, trigger,
-pointer, fix), made into :class:`.issues.CodeInfo` entries by :mod:`.issues`. Both or neither
-of ``faceIndex``/``faceCounts``, and derived anchors with some of ``normalOffset``,
-``localRotation``, ``localScale`` present, are schema rules (``ANCHOR_SCHEMA_VIOLATION``).
-
-It also hands :mod:`.issues` the entries of :mod:`.issues_rig`, so that the catalogue takes
-every entry kept outside it from here."""
+"""Catalogue rows of the compact anchor encodings (spec/README.md §Properties,
+`faceCounts` and §Derived `local` anchors, version 1.2), in the format of :mod:`.issues_rows`.
+Both or neither of ``faceIndex``/``faceCounts``, and derived anchors with some of
+``normalOffset``, ``localRotation``, ``localScale`` present, are schema rules
+(``ANCHOR_SCHEMA_VIOLATION``)."""
 from __future__ import annotations
 
 from gsverse_format.codes import Code
 from gsverse_format.vocabulary import EXTENSION, KHR
 
-from .issues_rig import RIG_ENTRIES
+from .issues_rows import Row
 
-__all__ = ["COMPACT_ENTRIES", "RIG_ENTRIES"]
+__all__ = ["COMPACT_ENTRIES"]
 
 _G = "Anchor extension"
 _EXT = "/meshes/{m}/primitives/{p}" + f"/extensions/{KHR}/extensions/{EXTENSION}"
 
-COMPACT_ENTRIES: list[tuple[Code, str, str, str, str, str]] = [
+COMPACT_ENTRIES: list[Row] = [
     (Code.ANCHOR_FACE_COUNTS_COUNT, "ERROR", _G, "The faceCounts accessor's count differs from "
      "the number of triangles of the anchor primitive (one count per triangle).",
      _EXT + "/faceCounts", "Write one count per anchor triangle, zeros included."),

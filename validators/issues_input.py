@@ -1,16 +1,17 @@
-"""Catalogue entries of what a file holds besides the splat data (:mod:`.graph` and
+"""Catalogue rows of what a file holds besides the splat data (:mod:`.graph` and
 :mod:`.validate`): a file without splats, the node hierarchy and the index ranges of the other
-meshes. (code, severity name, group, trigger, pointer, fix), made into
-:class:`.issues.CodeInfo` entries by :mod:`.issues`."""
+meshes. Rows in the format of :mod:`.issues_rows`."""
 from __future__ import annotations
 
 from gsverse_format.codes import Code
+
+from .issues_rows import Row
 
 __all__ = ["INPUT_ENTRIES"]
 
 _G = "What the file holds"
 
-INPUT_ENTRIES: list[tuple[Code, str, str, str, str, str]] = [
+INPUT_ENTRIES: list[Row] = [
     (Code.NO_SPLATS, "ERROR", _G, "The file holds no splats: no KHR_gaussian_splatting "
      "primitive (glTF) or ParticleField3DGaussianSplat prim (USD), or only ones with no "
      "splats. The message says what was checked instead; a glTF file's materials, textures "

@@ -1,14 +1,17 @@
-"""Catalogue entries of the animated anchor mesh checks (:mod:`.rig`; spec/README.md
-§Animated anchor meshes): (code, severity name, group, trigger, pointer, fix), made into
-:class:`.issues.CodeInfo` entries by :mod:`.issues`."""
+"""Catalogue rows of the animated anchor mesh checks (:mod:`.rig`; spec/README.md
+§Animated anchor meshes), in the format of :mod:`.issues_rows`."""
 from __future__ import annotations
 
 from gsverse_format.codes import Code
 
+from .issues_rows import Row
+
+__all__ = ["RIG_ENTRIES"]
+
 _G = "Animated anchor mesh"
 _PRIM = "/meshes/{m}/primitives/{p}"
 
-RIG_ENTRIES: list[tuple[Code, str, str, str, str, str]] = [
+RIG_ENTRIES: list[Row] = [
     (Code.ANCHOR_SKIN_INVALID, "ERROR", _G, "The skin of the anchor node does not resolve: its "
      "index, a joint node, or an inverseBindMatrices accessor whose count differs from the "
      "number of joints.", "/skins/{s}", "Write one inverse bind matrix per joint, joints that "

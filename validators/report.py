@@ -47,7 +47,8 @@ def _finding(f: Finding) -> str:
 
 
 def render_text(reports: Iterable[Report], *, quiet: bool = False) -> str:
-    """One summary line per file, then (unless ``quiet``) one line per finding. Names and
+    """One summary line per file, then (unless ``quiet``) one line per finding, errors first
+    (:meth:`~.validate.Report.ordered_findings`). Names and
     values from the file are escaped (:func:`~gsverse_format.textsafe.safe_line`): control
     characters become visible escapes and no line starts a CI workflow command."""
     lines = []
@@ -64,7 +65,7 @@ def render_text(reports: Iterable[Report], *, quiet: bool = False) -> str:
             extra.append("report truncated (--max-issues)")
         lines.append(f"{r.path}: {counts}" + (f" ({'; '.join(extra)})" if extra else ""))
         if not quiet:
-            lines.extend(_finding(f) for f in r.findings)
+            lines.extend(_finding(f) for f in r.ordered_findings())
     return "\n".join(map(safe_line, lines)) + ("\n" if lines else "")
 
 

@@ -28,8 +28,8 @@ _GLTF_PROPERTY = {"properties": {"extensions": {"type": "object",
 
 @functools.lru_cache(maxsize=1)
 def schema() -> dict[str, Any]:
-    """The extension's JSON Schema: the one file, package data of ``gsverse_format/schema``
-    (``spec/schema/`` links to it)."""
+    """The extension's JSON Schema: package data of ``gsverse_format/schema`` (``spec/schema/``
+    holds an identical copy for readers of the spec; a test keeps the two byte-identical)."""
     text = (resources.files("gsverse_format") / "schema" / SCHEMA_NAME).read_text(encoding="utf-8")
     result: dict[str, Any] = json.loads(text)
     return result

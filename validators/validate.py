@@ -22,7 +22,7 @@ from .anchor import check_anchor
 from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
 from .context import CheckContext
 from .graph import check_mesh_indices, check_node_graph
-from .issues import Issues, Severity
+from .issues import Finding, Issues, Severity
 from .khr import check_splat_primitive
 from .usd import usd_mime_type, validate_usd
 
@@ -50,8 +50,15 @@ class Report:
     usd: bool = False
 
     @property
-    def findings(self):
+    def findings(self) -> list[Finding]:
+        """The findings in the order found (the reports list them by severity:
+        :meth:`ordered_findings`)."""
         return self.issues.findings
+
+    def ordered_findings(self) -> list[Finding]:
+        """The findings as the text and JSON reports list them: errors, then warnings, infos
+        and hints; in the order found within a severity."""
+        return self.issues.ordered()
 
     def codes(self) -> set[Code]:
         return self.issues.codes()
@@ -77,7 +84,7 @@ class Report:
                 "numInfos": self.count(Severity.INFO),
                 "numHints": self.count(Severity.HINT),
                 "messages": [f.to_json("usdPath" if self.usd else "pointer")
-                             for f in self.findings],
+                             for f in self.ordered_findings()],
                 "truncated": self.issues.truncated,
             },
             "info": self.info,

@@ -21,7 +21,7 @@ from gsverse_format.frames import EPS_DEGENERATE, degenerate_mask
 from gsverse_format.manifold import manifold_report
 from gsverse_format.model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors,
                                   TriangleMesh)
-from gsverse_format.remap_reference import covariance_entries, iter_moments
+from gsverse_format.remapping.reference import covariance_entries, iter_moments
 from gsverse_format.tolerances import (REST_COVARIANCE_FLOOR, REST_COVARIANCE_RELATIVE,
                                        mesh_extent, rest_mean_tolerance)
 
@@ -325,7 +325,9 @@ def _check_barycentrics(ctx: CheckContext, profile: str | None, bary: np.ndarray
         if far.size:
             ctx.issues.add(Code.LOCAL_BARYCENTRICS_FAR, f"{far.size} of {len(b0)} splats have a "
                            f"barycentric weight below {bound:g}: their foot point lies far "
-                           f"outside their triangle (allowed by the spec)",
+                           f"outside their triangle (allowed by the spec; nothing to do for a converted "
+                           f"asset unless ANCHOR_MESH_MISFIT is also reported or these splats are "
+                           f"floaters, see spec/validation.md)",
                            pointer=location, count=int(far.size),
                            examples=ctx.examples(far, splat=np.arange(len(b0)), weights=weights))
 

@@ -12,8 +12,8 @@ IEEE float32, ``.f64`` IEEE float64)::
     DIR/cases/<id>/skinned.glb          skinned cases: the animation the poses come from
     DIR/cases/<id>/reference/*.png      render cases: the reference pictures (.render_export)
 
-Expected outputs come from the float64 reference (:mod:`gsverse_format.remap_reference`), evaluated on
-exactly the values stored in the files: the anchors as read back from ``asset.glb``
+Expected outputs come from the float64 reference (:mod:`gsverse_format.remapping.reference`),
+evaluated on exactly the values stored in the files: the anchors as read back from ``asset.glb``
 (dequantized) and the float32 poses.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ from ..frames import EPS_DEGENERATE, local_frames
 from ..io.gltf import asset_to_gltf, gltf_to_bytes
 from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                      SplatPrimitive)
-from ..remap_reference import face_matrices, prepare_rest, remap
+from ..remapping.reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
 from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset

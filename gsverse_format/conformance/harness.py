@@ -9,9 +9,9 @@ layout; :func:`run_plugin` is the same loop in Python for implementations callab
 An implementation is an object with the methods of :class:`Plugin`. Three are provided:
 
 * :class:`ReferencePlugin` — the library as a plugin: :func:`gsverse_format.io.gltf.read_gltf`
-  and the float64 reference :func:`gsverse_format.remap_reference.remap`;
+  and the float64 reference :func:`gsverse_format.remapping.reference.remap`;
 * :class:`FastPlugin` — the same importer and the compiled float32 path
-  (:class:`gsverse_format.remap_fast.FastRemapper`);
+  (:class:`gsverse_format.remapping.fast.FastRemapper`);
 * :class:`RawReferencePlugin` — the importer of :mod:`.minimal_reader` (no glTF library) with
   a replaceable dequantization step, and the reference remap.
 """
@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import FormatError
 from ..io.gltf import read_gltf
 from ..model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from .. import remap_reference as reference
+from ..remapping import reference
 from .glb import unpack_glb
 from .minimal_reader import Raw, Refused, dequantize, derive_local, face_index, read_anchored_glb
 
@@ -196,7 +196,7 @@ class ReferencePlugin:
     ``form="cov"`` dumps covariances, ``"rotscale"`` the reference's rotation/scale pairs.
     """
 
-    name = "gsverse_format.remap_reference (numpy, float64)"
+    name = "gsverse_format.remapping.reference (numpy, float64)"
 
     def __init__(self, form: str = "cov") -> None:
         self.form = form
@@ -233,9 +233,9 @@ class ReferencePlugin:
 
 class FastPlugin(ReferencePlugin):
     """``read_gltf`` and the compiled float32 remap
-    (:class:`~gsverse_format.remap_fast.FastRemapper`)."""
+    (:class:`~gsverse_format.remapping.fast.FastRemapper`)."""
 
-    name = "gsverse_format.remap_fast (float32)"
+    name = "gsverse_format.remapping.fast (float32)"
 
     def __init__(self, backend: str = "numba", rotations: bool = False) -> None:
         super().__init__()
@@ -243,7 +243,7 @@ class FastPlugin(ReferencePlugin):
         self.rotations = rotations
 
     def load(self, asset_path: str) -> None:
-        from ..remap_fast import FastRemapper
+        from ..remapping.fast import FastRemapper
 
         super().load(asset_path)
         self.remapper = FastRemapper(self.prim.anchoring, backend=self.backend,
@@ -263,7 +263,7 @@ class RawReferencePlugin:
     as the spec requires (turn it off to see what happens when an importer forgets).
     """
 
-    name = "minimal_reader + gsverse_format.remap_reference"
+    name = "minimal_reader + gsverse_format.remapping.reference"
 
     def __init__(self, dequantize_fn: Callable[[Raw], np.ndarray] = dequantize,
                  renormalize: bool = True) -> None:

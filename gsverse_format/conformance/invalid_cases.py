@@ -199,6 +199,26 @@ def _m_splat_not_points(doc, blob):
     return doc, blob
 
 
+def _m_splat_mode_absent(doc, blob):
+    del anchored_primitive(doc)["mode"]
+    return doc, blob
+
+
+def _m_anchor_mesh_instance_outside_scenes(doc, blob):
+    m = anchor_extension(doc)["mesh"]
+    doc["nodes"].append({"mesh": m, "name": "anchor mesh instance in the default scene"})
+    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    doc["nodes"].append({"mesh": m, "name": "anchor mesh instance in no scene"})
+    return doc, blob
+
+
+def _m_no_buffer_view(doc, blob):
+    accessor = doc["accessors"][anchor_extension(doc)["barycentrics"]]
+    del accessor["bufferView"]
+    accessor.pop("byteOffset", None)
+    return doc, blob
+
+
 def _m_anchor_mesh_two_nodes(doc, blob):
     m = anchor_extension(doc)["mesh"]
     for name in ("anchor mesh instance 1", "anchor mesh instance 2"):
@@ -398,6 +418,21 @@ def invalid_cases() -> list[InvalidCase]:
                     "POINTS (0); readers MUST refuse an asset whose anchored primitive has "
                     "another mode", "local", _m_splat_not_points,
                     "KHR_PRIMITIVE_NOT_POINTS"),
+        InvalidCase("invalid-splat-primitive-mode-absent", "The anchored splat primitive has no "
+                    "mode, so glTF's default TRIANGLES (4); everything else is valid.", f"{spec} "
+                    "§Where the extension object lives: a splat primitive without mode has mode "
+                    "4; readers MUST refuse an anchored splat primitive whose mode is absent",
+                    "local", _m_splat_mode_absent, "KHR_PRIMITIVE_NOT_POINTS"),
+        InvalidCase("invalid-anchor-mesh-instance-outside-scenes", "Two nodes instantiate the "
+                    "anchor mesh: one in the default scene, one that no scene lists.",
+                    f"{spec} §The anchor mesh (which nodes count): every element of nodes counts "
+                    "towards the instances, whichever scene lists it, or none", "local",
+                    _m_anchor_mesh_instance_outside_scenes, "ANCHOR_MESH_MULTIPLE_INSTANCES"),
+        InvalidCase("invalid-anchor-accessor-no-buffer-view", "The barycentrics accessor has "
+                    "no bufferView (glTF reads it as all zeros).", f"{spec} §Accessors without "
+                    "bufferView: anchor accessors MUST have a bufferView; readers MUST refuse an "
+                    "asset whose anchor accessor lacks one", "games", _m_no_buffer_view,
+                    "ACCESSOR_UNSUPPORTED"),
         InvalidCase("invalid-anchor-mesh-multiple-instances", "Two nodes instantiate the anchor "
                     "mesh.", f"{spec} §The anchor mesh: the anchor mesh MUST NOT be instantiated "
                     "by more than one node (which instance's skin or morph weights would drive "

@@ -42,7 +42,7 @@ import numpy as np
 from ..model import Anchoring, LocalAnchors, SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh
 from ..poses.analytic import bend, stretch, twist
 from ..quaternion import from_matrix
-from ..remap_reference import remap
+from ..remapping.reference import remap
 from ..render.camera import Camera, look_at
 from ..sh import SH_C0
 from .case_tools import case_rng, random_barycentrics, tube_mesh

@@ -26,7 +26,7 @@ import numpy as np
 from ..io.gltf import asset_to_gltf, gltf_to_bytes, read_gltf
 from ..io.gltf.scene import mesh_instances
 from ..model import SplatAsset
-from ..remap_reference import remap
+from ..remapping.reference import remap
 from ..render.camera import Camera
 from ..render.output import to_rgba8, write_png
 from ..render.project_reference import Settings
