@@ -14,11 +14,12 @@ Deformations φ (magnitude m ∈ {2, 5, 10}; t ∈ [0, 1] is the position along 
 
 Truth and candidate
     Truth: μ' = φ(μ), Σ' = J Σ Jᵀ with J the analytic Jacobian of φ at μ. Candidate: the remap
-    of the anchors onto φ(anchor vertices), computed by :class:`gsverse_format.remap_fast.FastRemapper`
-    (the float32 path an engine runs; it matches the float64 reference to ~1e-7, far below every
-    error reported here). For the ``games`` profile the splats are GaMeS splats of the anchor mesh
-    itself (flat, on the triangles, sized like the surface splats), since GaMeS cannot represent
-    arbitrary splats; their truth is φ applied to their rest pose.
+    of the anchors onto φ(anchor vertices), computed by
+    :class:`gsverse_format.remapping.fast.FastRemapper` (the float32 path an engine runs; it
+    matches the float64 reference to ~1e-7, far below every error reported here). For the
+    ``games`` profile the splats are GaMeS splats of the anchor mesh itself (flat, on the
+    triangles, sized like the surface splats), since GaMeS cannot represent arbitrary splats;
+    their truth is φ applied to their rest pose.
 
 Errors per splat (reported as median and 99th percentile)
     * position error relative to splat size: |μ_c − μ_t| / σ_t with σ_t = √(tr Σ_t / 3);
@@ -53,8 +54,8 @@ from gsverse_format import quaternion as quat
 from gsverse_format.binding import bind_local
 from gsverse_format.model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap_reference import remap as reference_remap
-from gsverse_format.remap_fast import FastRemapper
+from gsverse_format.remapping.reference import remap as reference_remap
+from gsverse_format.remapping.fast import FastRemapper
 
 from .timing import measure
 

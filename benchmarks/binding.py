@@ -143,7 +143,7 @@ def _compile_from_scratch() -> float | None:
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
         code = ("import time; t = time.perf_counter(); "
-                "from gsverse_format import nearest_compiled; nearest_compiled.warm_up(); "
+                "from gsverse_format.nearest import compiled; compiled.warm_up(); "
                 "print(time.perf_counter() - t)")
         try:
             out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     import numba
 
-    from gsverse_format import nearest_compiled
+    from gsverse_format.nearest import compiled as nearest_compiled
     from gsverse_format.nearest import nearest_triangles
     nearest_compiled.warm_up()
     first_call = time.perf_counter() - t0

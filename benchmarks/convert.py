@@ -8,7 +8,7 @@ Side by side, each command a fresh process (start-up and imports included), medi
 repetitions, peak resident memory of the process:
 
 * PlayCanvas ``splat-transform`` (npm ``@playcanvas/splat-transform``, installed with
-  ``npm ci`` in ``benchmarks/js``), PLY → GLB;
+  ``npm ci`` in ``tests/splat_transform``, where the tests use it too), PLY → GLB;
 * ``gsverse-convert --plain`` (format only: the same PLY → ``KHR_gaussian_splatting`` GLB);
 * ``gsverse-convert --mesh`` (anchored to the mesh: binding, sorting, the anchor accessors);
 
@@ -42,8 +42,10 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-#: The splat-transform command line tool, after ``npm ci`` in ``benchmarks/js``.
-SPLAT_TRANSFORM = HERE / "js" / "node_modules" / "@playcanvas" / "splat-transform" / "bin" / "cli.mjs"
+#: The splat-transform command line tool, after ``npm ci`` in ``tests/splat_transform`` (the
+#: one install of it, shared with the tests of the splat-format readers).
+SPLAT_TRANSFORM = (HERE.parent / "tests" / "splat_transform" / "node_modules" / "@playcanvas"
+                   / "splat-transform" / "bin" / "cli.mjs")
 #: Scaling sizes by name.
 SIZES = {"10k": 10_000, "20k": 20_000, "100k": 100_000, "250k": 250_000, "1M": 1_000_000,
          "2M": 2_000_000, "4M": 4_000_000}
@@ -160,7 +162,7 @@ def splat_transform_problem() -> str | None:
     if shutil.which("node") is None:
         return "node is not on PATH"
     if not SPLAT_TRANSFORM.is_file():
-        return "not installed: run `npm ci` in benchmarks/js"
+        return "not installed: run `npm ci` in tests/splat_transform"
     return None
 
 

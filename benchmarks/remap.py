@@ -36,8 +36,8 @@ import tracemalloc
 import numpy as np
 
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import remap as reference_remap
-from gsverse_format.remap_fast import FastRemapper, numba_available
+from gsverse_format.remapping.reference import remap as reference_remap
+from gsverse_format.remapping.fast import FastRemapper, numba_available
 
 from .timing import measure
 
@@ -266,7 +266,7 @@ def run(quick: bool = False, log=print) -> dict:
         if case == "local/affine":
             result["peak_numpy_remap_mb"] = _peak_bytes(lambda: reference_remap(anchoring, verts)) / 2**20
         try:
-            from gsverse_format.remap_reference import remap_moments
+            from gsverse_format.remapping.reference import remap_moments
         except ImportError:
             remap_moments = None
         if remap_moments is not None:

@@ -29,8 +29,8 @@ import time
 import numpy as np
 
 from gsverse_format.model import Anchoring, LocalAnchors
-from gsverse_format.remap_fast import FastRemapper
-from gsverse_format.remap_reference import remap as reference_remap
+from gsverse_format.remapping.fast import FastRemapper
+from gsverse_format.remapping.reference import remap as reference_remap
 from gsverse_format.binding import bind_local
 from gsverse_format.render.camera import frame_bounds
 from gsverse_format.render.raster import render_gaussians

@@ -37,7 +37,7 @@ def make_asset(n: int, faces: int, seed: int = 7):
     faces, sorted by face as the converter writes them."""
     from gsverse_format.model import Anchoring, LocalAnchors, SplatCloud
     from gsverse_format.poses.analytic import random_quaternions
-    from gsverse_format.remap_reference import remap
+    from gsverse_format.remapping.reference import remap
 
     from .accuracy import bar_mesh
 
@@ -61,7 +61,7 @@ def make_asset(n: int, faces: int, seed: int = 7):
 def _rest_check(path: Path) -> tuple[float, float]:
     """Worst rest-pose errors of the file read back, in units of the spec's tolerances."""
     from gsverse_format.io.gltf import read_gltf
-    from gsverse_format.remap_reference import covariance_entries, iter_moments
+    from gsverse_format.remapping.reference import covariance_entries, iter_moments
     from gsverse_format.tolerances import (REST_COVARIANCE_FLOOR, REST_COVARIANCE_RELATIVE,
                                            mesh_extent, rest_mean_tolerance)
 

@@ -18,7 +18,7 @@ def seeds() -> list[tuple[str, bytes]]:
     from gsverse_format.io.gltf import asset_to_gltf, gltf_to_bytes
     from gsverse_format.io.ply import write_splat_ply
     from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatPrimitive)
-    from gsverse_format.remap_reference import remap
+    from gsverse_format.remapping.reference import remap
 
     mesh = example_mesh(subdivisions=0)
     cloud = example_splats(mesh, 12, seed=3)

@@ -3,12 +3,12 @@
 Two computations have a compiled implementation beside their numpy reference:
 
 * the exact nearest-triangle search, :func:`gsverse_format.nearest.nearest_triangles`
-  (reference :mod:`gsverse_format.nearest_reference`, compiled
-  :mod:`gsverse_format.nearest_compiled`; identical results, bit for bit);
-* the per-frame float32 remap, :class:`gsverse_format.remap_fast.FastRemapper` and
-  :func:`gsverse_format.remap_fast.remap_auto` (reference :mod:`gsverse_format.remap_reference`,
-  compiled :mod:`gsverse_format.remap_compiled`; equal within the float32 bounds of
-  :mod:`gsverse_format.remap_bounds`).
+  (reference :mod:`gsverse_format.nearest.reference`, compiled
+  :mod:`gsverse_format.nearest.compiled`; identical results, bit for bit);
+* the per-frame float32 remap, :class:`gsverse_format.remapping.fast.FastRemapper` and
+  :func:`gsverse_format.remapping.fast.remap_auto` (reference
+  :mod:`gsverse_format.remapping.reference`, compiled :mod:`gsverse_format.remapping.compiled`;
+  equal within the float32 bounds of :mod:`gsverse_format.remapping.bounds`).
 
 Each takes a backend name, ``"numba"``, ``"numpy"`` or ``"auto"`` (the default). An explicit
 ``"numba"`` or ``"numpy"`` is used as given. ``"auto"`` defers to the process-wide choice,
@@ -39,15 +39,15 @@ Small inputs (cold start)
       numba 0.43 s at 3,000 points × 1,280 faces, 0.43–0.51 s at 20,000 × 5,120 and 0.47 s at
       40,000 × 20,480; the numpy reference 0.05 s, 0.27 s and 0.73 s. The two cross near
       points + faces ≈ 40,000, and below the threshold the reference stays under about 0.4 s;
-    * one-shot remaps (:func:`gsverse_format.remap_fast.remap_auto`): splats below
+    * one-shot remaps (:func:`gsverse_format.remapping.fast.remap_auto`): splats below
       :data:`REMAP_NUMPY_BELOW` (65,536). At 65,536 splats the float64 reference took 0.36 s
       of CPU (``local``/affine, with rotations and scales; 0.08 s rigid, 0.05 s games; 0.03 s
       at 3,000 splats), while compiling the remap kernels in a fresh cache took 9.5 s
-      (``local``) and 6.1 s (games). A :class:`~gsverse_format.remap_fast.FastRemapper` is
+      (``local``) and 6.1 s (games). A :class:`~gsverse_format.remapping.fast.FastRemapper` is
       built for per-frame use and keeps numba under ``"auto"``.
 
     Both implementations give the same results (bit for bit for the nearest search, within the
-    float32 bounds of :mod:`gsverse_format.remap_bounds` for the remap), so the threshold
+    float32 bounds of :mod:`gsverse_format.remapping.bounds` for the remap), so the threshold
     changes only the time. ``tests/test_backend.py`` checks, in a fresh process with an empty
     ``NUMBA_CACHE_DIR``, that converting and validating the README example never imports numba.
 

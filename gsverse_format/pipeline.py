@@ -22,31 +22,30 @@
 
 Steps 3–5 are :func:`load_source`. Library users call :func:`convert`; the command line
 (:mod:`gsverse_format.cli.convert`) only parses options and prints the returned
-:class:`ConvertSummary`.
+:class:`ConvertSummary`. The options, the summary and the checks of step 1 are in
+:mod:`gsverse_format.convert_options` (re-exported here: ``pipeline.ConvertOptions``).
 """
 from __future__ import annotations
 
 import os
 import time
 import warnings
-from dataclasses import asdict, dataclass, field, replace
-from typing import Any
+from dataclasses import replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from typing import TYPE_CHECKING
-
+from .convert_options import ConvertOptions, ConvertSummary, check_options, source_options
 from .errors import FormatError, GsverseError, UsageError
-from .atomic import check_target
 from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, rotate_asset,
-                          suffixes, write_asset)
-from .model import (Anchoring, DeformationLaw, KhrProperties, LocalAnchors, SplatAsset,
-                    SplatCloud, SplatPrimitive, prim_label, splat_problem)
+                          write_asset)
+from .model import (Anchoring, KhrProperties, LocalAnchors, SplatAsset, SplatCloud,
+                    SplatPrimitive, prim_label, splat_problem)
 from .progress import Progress
 from .transform import rotate_mesh, rotate_splats
 
 if TYPE_CHECKING:
-    from .converters.base import SourceOptions, SourceResult, TrellisFrame
+    from .converters.base import SourceOptions, SourceResult
 
 # The sources, binding, nearest-triangle search and scene modules are imported where they are
 # used: a format-only conversion (``plain``) never loads them.
@@ -60,181 +59,6 @@ _NO_SPLATS = {"gltf": "the file has no KHR_gaussian_splatting POINTS primitive",
               "ply": "the PLY has no vertices", "usd": "the stage has no splat prim with points"}
 #: The ``source`` a summary names for a format-only conversion, by input format.
 _FORMAT_SOURCE = {"gltf": "khr", "ply": "3dgs"}
-
-
-@dataclass
-class ConvertOptions:
-    """Options of :func:`convert` (the command-line flags map one to one).
-
-    ``faces`` is the face count the anchor mesh is decimated to (the resolution the physics
-    needs); ``reconstruct_faces`` the size of a mesh reconstructed from the splats when no
-    ``mesh`` is given (default: ``faces``, else 20 000). ``frame_change`` rotates from the
-    input's frame into glTF's (and from glTF's into a PLY output's). ``max_distance`` is
-    relative to the anchor mesh's bounding-box diagonal unless ``absolute_distance``; ``None``
-    anchors every splat. ``plain`` converts formats only (no anchoring is added or kept).
-    ``bake_poses`` names a poses file (:func:`gsverse_format.io.usd.load_poses`) baked into
-    USD time samples (USD output only). ``meshes``, two or more, makes a scene of several
-    objects (:mod:`gsverse_format.scene`; ``max_distance`` is then relative to each object's
-    mesh); ``watertight`` makes each anchor mesh a closed 2-manifold before binding;
-    ``collider`` (``"hull"``) adds a collision mesh per anchor mesh. ``anchors`` is how glTF
-    output stores the anchors (``"explicit"``, the version 1.1 layout, or ``"compact"``:
-    ``faceCounts`` and derived ``local`` anchors, extension 1.2); ``quantize`` (16 or 8) stores
-    what glTF output can quantize as normalized integers of that many bits
-    (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`). An anchor mesh that does not fit
-    its splats (:func:`gsverse_format.scene.judge_fit`) is a warning, an error with ``strict``.
-    """
-
-    mesh: str | None = None
-    source: str = "auto"
-    deformation: DeformationLaw = "affine"
-    frame_change: bool = True
-    keep_order: bool = False
-    sh_degree: int | None = None
-    max_distance: float | None = None
-    absolute_distance: bool = False
-    drop_unanchored: bool = False
-    faces: int | None = None
-    reconstruct_faces: int | None = None
-    pt_path: str | None = None
-    k: int | None = None
-    legacy_trellis_frame: bool = False
-    plain: bool = False
-    bake_poses: str | None = None
-    meshes: list[str] | None = None
-    watertight: bool = False
-    collider: str | None = None
-    anchors: str = "explicit"
-    quantize: int | None = None
-    strict: bool = False
-
-
-@dataclass
-class ConvertSummary:
-    """What a conversion did; ``as_dict()`` is the ``--json`` output."""
-
-    input: str
-    output: str
-    source: str = ""
-    splats: int = 0
-    anchored: int = 0
-    static: int = 0
-    dropped: int = 0
-    profile: str | None = None
-    deformation: str | None = None
-    sh_degree: int = 0
-    mesh_faces: int = 0
-    degenerate_faces: int = 0
-    distance: dict[str, float] = field(default_factory=dict)
-    max_distance: float | None = None
-    check: dict[str, Any] = field(default_factory=dict)
-    notes: list[str] = field(default_factory=list)
-    objects: list[dict[str, Any]] = field(default_factory=list)
-    anchor_meshes: list[dict[str, Any]] = field(default_factory=list)
-    fit: list[dict[str, Any]] = field(default_factory=list)
-    output_bytes: int = 0
-    seconds: float = 0.0
-    #: The splats were bound, but the output format (PLY) holds plain splats only.
-    plain_output: bool = False
-
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-    def lines(self) -> list[str]:
-        written = ("written as plain splats (anchoring not written to PLY)"
-                   if self.plain_output else
-                   f"written: anchored {self.anchored}, static {self.static}")
-        out = [f"{self.input} -> {self.output}  (source: {self.source})",
-               f"  splats     {self.splats} {written}; dropped {self.dropped}; "
-               f"SH degree {self.sh_degree}"]
-        if self.profile:
-            law = f", deformation {self.deformation}" if self.deformation else ""
-            out.append(f"  {'binding    ' if self.plain_output else 'anchoring  '}profile "
-                       f"{self.profile}{law}, {self.mesh_faces} faces "
-                       f"({self.degenerate_faces} degenerate, never bound)"
-                       + ("; not written" if self.plain_output else ""))
-        if self.distance:
-            d = self.distance
-            out.append(f"  distance   to mesh p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, p99 {d['p99']:.3g}, "
-                       f"max {d['max']:.3g} (mesh diagonal {d['mesh_diagonal']:.3g})")
-        if self.max_distance is not None:
-            out.append(f"  static     splats farther than {self.max_distance:.3g} from the mesh "
-                       f"{'dropped' if self.dropped else 'kept as plain splats'}")
-        for obj in self.objects:
-            d = obj["distance"]
-            dist = (f", distance p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, max {d['max']:.3g}"
-                    if d else "")
-            limit = f", within {obj['max_distance']:.3g}" if obj["max_distance"] is not None \
-                else ""
-            out.append(f"  object     {obj['name']}: {obj['splats']} splats, {obj['faces']} "
-                       f"faces{dist}{limit}")
-        for m in self.anchor_meshes:
-            state = "a closed 2-manifold" if m["closed_manifold"] else (
-                f"not a closed 2-manifold ({m['boundary_edges']} boundary, "
-                f"{m['nonmanifold_edges']} non-manifold edges)")
-            collider = f"; {m['collider']['kind']} collider, {m['collider']['faces']} faces" \
-                if m["collider"] else ""
-            out.append(f"  manifold   {m['name']} anchor mesh: {state}{collider}")
-        for note in self.notes:
-            out.append(f"  note       {note}")
-        out.append(f"  wrote      {self.output_bytes} bytes in {self.seconds:.2f} s")
-        return out
-
-
-def _check_options(input_path: str, output_path: str, options: ConvertOptions) -> None:
-    if options.deformation not in ("affine", "rigid"):
-        raise UsageError(f"--deformation must be affine or rigid, not {options.deformation!r}")
-    if options.sh_degree is not None and options.sh_degree not in (0, 1, 2, 3):
-        raise UsageError(f"--sh-degree must be 0..3, not {options.sh_degree}")
-    if options.max_distance is not None and not (options.max_distance >= 0):
-        raise UsageError(f"--max-distance must be >= 0, not {options.max_distance}")
-    if options.drop_unanchored and options.max_distance is None:
-        raise UsageError("--drop-unanchored needs --max-distance")
-    if options.collider is not None and options.collider not in ("hull",):
-        raise UsageError(f"--collider must be hull, not {options.collider!r}")
-    if options.plain and (options.meshes or options.watertight or options.collider):
-        raise UsageError("--plain writes splats without anchoring: drop --mesh, --watertight "
-                         "and --collider, or --plain")
-    for flag, value in (("--faces", options.faces),
-                        ("--reconstruct-faces", options.reconstruct_faces)):
-        if value is not None and value < 4:
-            raise UsageError(f"{flag} must be at least 4, not {value}")
-    if not os.path.exists(input_path):
-        raise UsageError("file not found", input_path)
-    for p in (options.mesh, options.pt_path, options.bake_poses, *(options.meshes or ())):
-        if p is not None and not os.path.isfile(p):
-            raise UsageError("file not found", p)
-    check_target(output_path)  # a folder, a path through a file, a missing folder
-    out_format = find_format(output_path, "write")
-    if options.bake_poses is not None and out_format.name != "usd":
-        raise UsageError(f"--bake-poses needs a USD output ({', '.join(suffixes('write', 'usd'))})",
-                         output_path)
-    _check_encoding_options(output_path, options, out_format.name)
-    in_format = FORMATS.get(os.path.splitext(input_path)[1].lower())
-    if "usd" in (out_format.name, in_format.name if in_format is not None else None):
-        from .io.usd.schema import import_pxr
-
-        try:   # a missing usd-core is said before any work, not after it
-            import_pxr()
-        except UsageError as exc:
-            raise exc.with_path(output_path if out_format.name == "usd" else input_path) \
-                from None
-
-
-def _check_encoding_options(output_path: str, options: ConvertOptions, out_format: str) -> None:
-    """``--anchors`` and ``--quantize``: glTF output only; compact anchors group the splats by
-    face, which ``--keep-order`` forbids."""
-    if options.anchors not in ("explicit", "compact"):
-        raise UsageError(f"--anchors must be explicit or compact, not {options.anchors!r}")
-    if options.quantize is not None and options.quantize not in (16, 8):
-        raise UsageError(f"--quantize must be 16 or 8, not {options.quantize}")
-    changed = [flag for flag, on in (("--anchors compact", options.anchors == "compact"),
-                                     ("--quantize", options.quantize is not None)) if on]
-    if changed and out_format != "gltf":
-        raise UsageError(f"{' and '.join(changed)} {'apply' if len(changed) > 1 else 'applies'} "
-                         f"to glTF output (.glb, .gltf) only", output_path)
-    if options.anchors == "compact" and options.keep_order:
-        raise UsageError("--anchors compact stores the splats grouped by face: drop --keep-order "
-                         "or --anchors compact")
 
 
 def _format_only(input_path: str, output_path: str, options: ConvertOptions) -> bool:
@@ -263,7 +87,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     start = time.perf_counter()
     input_path, output_path = os.fspath(input_path), os.fspath(output_path)
     summary = ConvertSummary(input_path, output_path)
-    _check_options(input_path, output_path, options)
+    check_options(input_path, output_path, options)
     protect = tuple(p for p in (input_path, options.mesh, options.pt_path, options.bake_poses,
                                 *(options.meshes or ())) if p is not None)
 
@@ -306,7 +130,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         summary.notes.append(f"detected source {source}: {reason}")
     summary.source = source
     progress.stage(f"reading {source} input")
-    src_options, notes = _source_options(source, options)
+    src_options, notes = source_options(source, options)
     summary.notes.extend(notes)
     reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
         else options.faces
@@ -335,19 +159,6 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     del result   # the source's splats: the asset holds its own (sorted) copies
     finish_physics(asset, options, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
-
-
-def _source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions, list[str]]:
-    """What the loaders get from the command line, and notes on flags that do not apply."""
-    from .converters.base import SourceOptions
-
-    notes: list[str] = []
-    trellis_frame: TrellisFrame = "legacy" if options.legacy_trellis_frame else "current"
-    if not options.frame_change:
-        trellis_frame = "none"
-        if options.legacy_trellis_frame and source == "trellis":
-            notes.append("--legacy-trellis-frame ignored: --no-frame-change keeps the PLY as is")
-    return SourceOptions(pt_path=options.pt_path, k=options.k, trellis_frame=trellis_frame), notes
 
 
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,

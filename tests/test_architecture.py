@@ -129,8 +129,8 @@ def test_the_graph_sees_the_package():
     graph = import_graph()
     assert "gsverse_format.nearest" in graph and "gsverse_format.converters" in graph
     assert "gsverse_format.validators" in graph
-    assert "gsverse_format.nearest_reference" in graph["gsverse_format.nearest"]
-    assert "gsverse_format.remap_reference" in graph["gsverse_format.remap_fast"]
+    assert "gsverse_format.nearest.reference" in graph["gsverse_format.nearest"]
+    assert "gsverse_format.remapping.reference" in graph["gsverse_format.remapping.fast"]
 
 
 def test_cycle_finder_finds_a_cycle():
@@ -148,3 +148,41 @@ def test_no_import_cycles():
         lines.append("cycle among: " + ", ".join(component))
         lines += [f"    {a} -> {b}" for a in component for b in sorted(graph[a] & members)]
     assert not found, "import cycles among package modules:\n" + "\n".join(lines)
+
+
+#: Module paths that earlier documentation named, kept as re-exports of the module that now
+#: holds the code (README §Using the library).
+EARLIER_PATHS = {"gsverse_format.remap_fast": "gsverse_format.remapping.fast",
+                 "gsverse_format.remap_reference": "gsverse_format.remapping.reference"}
+
+
+def test_earlier_paths_only_re_export():
+    """An earlier path holds no code: imports from its new module and ``__all__``, nothing
+    else, and every name it exports is the new module's object."""
+    import importlib
+
+    modules = package_modules()
+    for old, new in EARLIER_PATHS.items():
+        path, _ = modules[old]
+        body = ast.parse(path.read_text(encoding="utf-8")).body
+        if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+            body = body[1:]                                  # the docstring
+        for node in body:
+            if isinstance(node, ast.ImportFrom):
+                assert node.module == "__future__" or imports_of(old, modules) == {new}, old
+            else:
+                assert (isinstance(node, ast.Assign) and len(node.targets) == 1
+                        and getattr(node.targets[0], "id", None) == "__all__"), (old, node.lineno)
+        before, after = importlib.import_module(old), importlib.import_module(new)
+        assert before.__all__ and all(getattr(before, name) is getattr(after, name)
+                                      for name in before.__all__), old
+
+
+def test_no_submodule_shadows_an_exported_name():
+    """Importing ``gsverse_format.<name>`` sets the package's attribute ``<name>`` to that
+    module: a submodule named like an exported function (``remap``, ``bind``...) would replace
+    the function once anything imports it (hence ``remapping/``, not ``remap/``)."""
+    import gsverse_format
+
+    top = {name.split(".")[1] for name in package_modules() if name.count(".") >= 1}
+    assert not top & set(gsverse_format.__all__), sorted(top & set(gsverse_format.__all__))

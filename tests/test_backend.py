@@ -9,7 +9,7 @@ from gsverse_format.backend import (BackendUnavailableError, get_backend, numba_
                                     resolve_backend, set_backend)
 from gsverse_format.model import Anchoring, GamesAnchors, TriangleMesh
 from gsverse_format.nearest import nearest_triangles
-from gsverse_format.remap_fast import FastRemapper
+from gsverse_format.remapping.fast import FastRemapper
 
 
 @pytest.fixture(autouse=True)
@@ -51,7 +51,7 @@ def test_environment_variable_and_set_backend(monkeypatch):
 
 def test_set_backend_reaches_both_dispatchers(monkeypatch):
     calls = []
-    monkeypatch.setattr("gsverse_format.nearest.nearest_triangles_numpy",
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.nearest_triangles_numpy",
                         lambda *a, **k: calls.append("numpy"))
     set_backend("numpy")
     nearest_triangles(np.zeros((1, 3)), np.eye(3), np.array([[0, 1, 2]]))
@@ -99,14 +99,14 @@ def test_small_jobs_run_the_reference_under_auto(monkeypatch):
 
 def test_nearest_dispatch_by_size(monkeypatch):
     calls = []
-    monkeypatch.setattr("gsverse_format.nearest.nearest_triangles_numpy",
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.nearest_triangles_numpy",
                         lambda *a, **k: calls.append("numpy"))
     p, v, f = np.zeros((3, 3)), np.eye(3), np.array([[0, 1, 2]])
     nearest_triangles(p, v, f)
     assert calls == ["numpy"]                          # 4 points + faces, far below the threshold
     assert backend.NEAREST_NUMPY_BELOW > 3 + 1
     if numba_available():
-        monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 4)
+        monkeypatch.setattr("gsverse_format.nearest.dispatch.NEAREST_NUMPY_BELOW", 4)
         result = nearest_triangles(p, v, f)            # 4 is not below 4: the compiled search
         assert calls == ["numpy"] and result.face.tolist() == [0, 0, 0]
 

@@ -9,7 +9,7 @@ from gsverse_format.errors import BindingError
 from gsverse_format.frames import degenerate_mask
 from gsverse_format.model import Anchoring, TriangleMesh
 from gsverse_format.nearest import closest_points_on_triangles
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 
 from helpers import bumpy_sphere, max_rel_cov_error, random_splats
 

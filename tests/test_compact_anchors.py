@@ -22,7 +22,7 @@ from gsverse_format.io.gltf import asset_to_gltf, read_gltf, write_gltf
 from gsverse_format.io.gltf.writer import QUANTIZE_BITS, quantize_notes
 from gsverse_format.model import (Anchoring, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 from gsverse_format.tolerances import (REST_COVARIANCE_FLOOR, REST_COVARIANCE_RELATIVE,
                                        mesh_extent, rest_mean_tolerance)
 from gsverse_format.validators import validate_file

@@ -17,7 +17,7 @@ def auto_path(request, monkeypatch):
 
         if not numba_available():
             pytest.skip("numba not installed")
-        monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 0)
+        monkeypatch.setattr("gsverse_format.nearest.dispatch.NEAREST_NUMPY_BELOW", 0)
     return request.param
 
 
@@ -342,7 +342,7 @@ def test_single_and_degenerate_only_meshes():
 @pytest.mark.parametrize("mesh", ["icosphere", "nasty"])
 def test_hierarchy_bounds_contain_their_triangles(mesh):
     """White-box check of the certificate: every node's ball and cylinder hold its triangles."""
-    from gsverse_format import nearest_reference as nt
+    from gsverse_format.nearest import reference as nt
 
     v, f = bumpy_icosphere(3, seed=21) if mesh == "icosphere" else nasty_mesh(seed=22)
     tree = nt._build(v[f[:, 0]], v[f[:, 1]], v[f[:, 2]], np.arange(len(f)))

@@ -12,9 +12,9 @@ import pytest
 
 pytest.importorskip("numba")
 
-from gsverse_format import nearest_compiled as nf                         # noqa: E402
-from gsverse_format import nearest_compiled_kernel as nk                  # noqa: E402
-from gsverse_format import nearest_reference as nt                        # noqa: E402
+from gsverse_format.nearest import compiled as nf                         # noqa: E402
+from gsverse_format.nearest import compiled_kernel as nk                  # noqa: E402
+from gsverse_format.nearest import reference as nt                        # noqa: E402
 from gsverse_format.nearest import closest_points_on_triangles, nearest_triangles  # noqa: E402
 
 from test_nearest import bumpy_icosphere, check_result, nasty_mesh, query_points  # noqa: E402
@@ -280,7 +280,7 @@ def test_dispatch(monkeypatch):
     monkeypatch.setattr(nf, "build_tree", lambda *a: used.append(1) or real(*a))
     nearest_triangles(p, v, f)
     assert used == []                                    # auto, a small job: the reference
-    monkeypatch.setattr("gsverse_format.nearest.NEAREST_NUMPY_BELOW", 0)
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.NEAREST_NUMPY_BELOW", 0)
     nearest_triangles(p, v, f)
     assert used == [1]                                   # auto: compiled when numba imports
     monkeypatch.setenv("GSVERSE_BACKEND", "numpy")

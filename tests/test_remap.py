@@ -8,7 +8,7 @@ from gsverse_format import quaternion as quat
 from gsverse_format.binding import bind_local
 from gsverse_format.frames import EPS_DEGENERATE, games_frames, local_frames
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import remap
+from gsverse_format.remapping.reference import remap
 
 from helpers import bumpy_sphere, max_rel_cov_error, random_rotation, surface_splats
 

@@ -1,6 +1,6 @@
 """The fast remap agrees with the float64 reference within the stated float32 bounds.
 
-Bounds (``gsverse_format.remap_bounds.float32_error_bounds``, u = 2⁻²⁴):
+Bounds (``gsverse_format.remapping.bounds.float32_error_bounds``, u = 2⁻²⁴):
 mean ``16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
 ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest;
 ``local`` covariance ``64 u ‖A‖_F² Σ s_l²`` (A = [E_c C_r⁻¹ | m], k R_c, or R_c on faces
@@ -11,12 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gsverse_format import remap_fast as rf
+from gsverse_format.remapping import fast as rf
 from gsverse_format.backend import numba_available
 from gsverse_format.binding import bind_local
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import prepare_rest, remap
-from gsverse_format.remap_bounds import float32_error_bounds
+from gsverse_format.remapping.reference import prepare_rest, remap
+from gsverse_format.remapping.bounds import float32_error_bounds
 
 from helpers import bumpy_sphere, random_rotation, surface_splats
 
@@ -255,7 +255,7 @@ def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
     chunk size (runs split across chunks) and the thread count."""
     import numba
 
-    from gsverse_format import remap_compiled_runs as runs
+    from gsverse_format.remapping import compiled_runs as runs
 
     base = anchorings[kind]
     order = np.argsort(base.anchors.face_index, kind="stable")
@@ -292,7 +292,7 @@ def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
 
 
 def test_run_plan():
-    from gsverse_format.remap_compiled_runs import plan_runs
+    from gsverse_format.remapping.compiled_runs import plan_runs
 
     face = np.array([0, 0, 0, 2, 2, 5, 5, 5, 5, 5], np.int32)
     plan = plan_runs(face, 6, chunk=4)

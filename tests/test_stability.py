@@ -13,7 +13,7 @@ fast path must give:
 * deterministic results (bit-identical on repetition, with 1 or several threads, and whether
   the splats are sorted by face or not);
 * and the float32 result must lie within the stated bound of the float64 one
-  (``gsverse_format.remap_bounds.float32_error_bounds``):
+  (``gsverse_format.remapping.bounds.float32_error_bounds``):
   ``|Δμ| <= 16 u (|v0| + |b1||e1| + |b2||e2| + |d| k) + |d| ν`` with
   ``ν = min(8 u P / √(a_c a_r), 6 √(u P / a_r))`` (P = |e1||e2|) on faces regular at rest,
   ``‖ΔΣ‖_F <= 64 u ‖A‖_F² Σ s_l²`` (``local``; A = [E_c C_r⁻¹ | m], k R_c or R_c) and
@@ -35,12 +35,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from gsverse_format import remap_fast as rf
+from gsverse_format.remapping import fast as rf
 from gsverse_format.backend import numba_available
 from gsverse_format.frames import EPS_DEGENERATE
 from gsverse_format.model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
-from gsverse_format.remap_reference import prepare_rest, remap
-from gsverse_format.remap_bounds import F32_UNIT_ROUNDOFF, float32_error_bounds
+from gsverse_format.remapping.reference import prepare_rest, remap
+from gsverse_format.remapping.bounds import F32_UNIT_ROUNDOFF, float32_error_bounds
 
 U = F32_UNIT_ROUNDOFF
 SETTINGS = settings(max_examples=int(os.environ.get("GSVERSE_STABILITY_EXAMPLES", "60")),

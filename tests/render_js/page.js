@@ -4,40 +4,15 @@
 
 import * as pc from '/pkg/node_modules/playcanvas/build/playcanvas.mjs';
 import { loadAnchoredAsset } from '/pkg/src/playcanvas/index.js';
+import { settleFrames, startApp } from '/pkg/conformance/page/engine-page.js';
 
 /** @type {any} */
 let app = null;
 /** @type {any} */
 let loaded = null;
 
-function frame() {
-    return new Promise((resolve) => { app.once('frameend', () => resolve(undefined)); app.renderNextFrame = true; });
-}
-
-function pixels() {
-    const gl = app.graphicsDevice.gl;
-    const w = gl.drawingBufferWidth, h = gl.drawingBufferHeight;
-    const px = new Uint8Array(w * h * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
-    const out = new Uint8Array(w * h * 4);   // top-down rows
-    for (let y = 0; y < h; ++y) out.set(px.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
-    return out;
-}
-
 /** Render until two consecutive frames are identical (the engine sorts asynchronously). */
-async function settle() {
-    let previous = null;
-    for (let i = 0; i < 60; ++i) {
-        await frame();
-        const px = pixels();
-        let lit = false;
-        for (let k = 0; k < px.length && !lit; k += 4) lit = px[k] + px[k + 1] + px[k + 2] > 24;
-        if (lit && i > 2 && previous && previous.every((v, k) => v === px[k])) return px;
-        previous = px;
-    }
-    return previous;
-}
+const settle = () => settleFrames(app, { identical: 1 });
 
 /**
  * @param {{url: string, width: number, height: number, eye: number[], target: number[], fov: number,
@@ -45,13 +20,7 @@ async function settle() {
  */
 async function render(o) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    canvas.width = o.width;
-    canvas.height = o.height;
-    const graphicsDevice = await pc.createGraphicsDevice(canvas, /** @type {any} */ ({ deviceTypes: ['webgl2'], antialias: false, preserveDrawingBuffer: true, alpha: false }));
-    app = new pc.Application(canvas, { graphicsDevice });
-    app.setCanvasFillMode(pc.FILLMODE_NONE);
-    app.setCanvasResolution(pc.RESOLUTION_FIXED, o.width, o.height);
-    app.autoRender = false;
+    app = await startApp(canvas, { readback: true, width: o.width, height: o.height });
     const camera = new pc.Entity('camera');
     camera.addComponent('camera', { clearColor: new pc.Color(0, 0, 0, 1), fov: o.fov, nearClip: o.near, farClip: o.far,
         toneMapping: pc.TONEMAP_LINEAR, gammaCorrection: o.gamma === 'srgb' ? pc.GAMMA_SRGB : pc.GAMMA_NONE });

@@ -1,13 +1,13 @@
 """Compiled exact nearest-triangle search (numba), bit-identical to the numpy reference.
 
 :func:`nearest_triangles_numba` answers the same question as the numpy reference
-:func:`gsverse_format.nearest_reference.nearest_triangles_numpy` and returns the same
-:class:`~gsverse_format.nearest_reference.NearestResult`, face for face and bit for bit; only
+:func:`gsverse_format.nearest.reference.nearest_triangles_numpy` and returns the same
+:class:`~gsverse_format.nearest.reference.NearestResult`, face for face and bit for bit; only
 the search structure differs. Callers use :func:`gsverse_format.nearest.nearest_triangles`,
 which picks one of the two (:mod:`gsverse_format.backend`).
 
 Point–triangle distance
-    The scalar kernel of :mod:`gsverse_format.nearest_compiled_kernel`, a transcription of the
+    The scalar kernel of :mod:`gsverse_format.nearest.compiled_kernel`, a transcription of the
     reference kernel in the same order of floating-point operations: each distance equals the
     reference's in float64.
 
@@ -35,7 +35,8 @@ Ties
 
 Units are those of the input coordinates; all distance arithmetic is float64. Compiled code is
 cached on disk (``cache=True``, next to this module or under ``NUMBA_CACHE_DIR``; see
-:mod:`gsverse_format.nearest_compiled_kernel` on editing the kernel); the first call
+:mod:`gsverse_format.nearest.compiled_kernel` and :mod:`gsverse_format.compiled_chunks` on
+editing the functions this module inlines); the first call
 in a fresh environment compiles it, which takes 10–20 s (:func:`warm_up` does it up front).
 Throughput against other tools: ``python -m benchmarks.binding``.
 """
@@ -48,10 +49,10 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import ArrayLike
 
-from .backend import configure_numba
-from .nearest_compiled_kernel import (RECORD_WIDTH, closest_point, f32_down, f32_up, face_record,
-                                      fetch_add, max3, min3)
-from .nearest_reference import MARGIN, NearestResult, prepare_query
+from ..backend import configure_numba
+from ..compiled_chunks import chunk_count, fetch_add, next_chunk
+from .compiled_kernel import RECORD_WIDTH, closest_point, f32_down, f32_up, face_record, max3, min3
+from .reference import MARGIN, NearestResult, prepare_query
 
 configure_numba()
 
@@ -442,16 +443,17 @@ def _query(P, order, lo, hi, rec, face, child, cbox, slab, root, scale, n_thread
            out_face, out_dist, out_closest, out_bary):
     """Search the (spatially sorted) queries ``P[lo:hi]``, blocks of them at a time per
     thread; the result of ``P[i]`` goes to row ``order[i]`` of the outputs."""
-    n_blocks = (hi - lo + _BLOCK - 1) // _BLOCK
+    n = hi - lo
+    n_blocks = chunk_count(n, _BLOCK)
     counter = np.zeros(1, np.int64)
     for _ in prange(n_threads):
         st_node = np.empty(_STACK, np.int64)
         st_lb = np.empty(_STACK)
         while True:
-            b = fetch_add(counter, 1)
+            b, start, stop = next_chunk(counter, _BLOCK, n)
             if b >= n_blocks:
                 break
-            for i in range(lo + b * _BLOCK, min(lo + b * _BLOCK + _BLOCK, hi)):
+            for i in range(lo + start, lo + stop):
                 px, py, pz = P[i, 0], P[i, 1], P[i, 2]
                 k, v, w, d2 = _search(rec, face, child, cbox, slab, root, scale,
                                       px, py, pz, st_node, st_lb)
@@ -540,7 +542,7 @@ def nearest_triangles_numba(points: ArrayLike, vertices: ArrayLike, faces: Array
                             exclude: ArrayLike | None = None, chunk: int = 65536,
                             progress: Callable[[int, int], None] | None = None
                             ) -> NearestResult:
-    """Compiled :func:`~gsverse_format.nearest_reference.nearest_triangles_numpy`: same
+    """Compiled :func:`~gsverse_format.nearest.reference.nearest_triangles_numpy`: same
     arguments, same result, bit for bit."""
     P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
     if P.shape[0] == 0:

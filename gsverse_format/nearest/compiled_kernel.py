@@ -1,11 +1,12 @@
 """Compiled point–triangle kernel of the exact nearest-triangle search (numba).
 
-The scalar building blocks of :mod:`gsverse_format.nearest_compiled`: the distance kernel, the
-per-face records it reads, and the float32 rounding and atomic helpers of the tree.
+The scalar building blocks of :mod:`gsverse_format.nearest.compiled`: the distance kernel, the
+per-face records it reads, and the float32 rounding helpers of the tree (the atomic counter
+that hands out work is :func:`gsverse_format.compiled_chunks.fetch_add`).
 
 Point–triangle distance
     The kernel is a scalar transcription of the reference kernel (``_face_table`` and
-    ``_kernel`` in :mod:`gsverse_format.nearest_reference`): the same per-face constants (``a``,
+    ``_kernel`` in :mod:`gsverse_format.nearest.reference`): the same per-face constants (``a``,
     ``ab``, ``ac``, the dual basis ``e_v``, ``e_w`` and the degenerate flag), the same
     Voronoi-region precedence (vertex A, vertex B, edge AB, vertex C, edge AC, edge BC, face),
     the same edge-segment fallback for degenerate triangles and for face-region results outside
@@ -17,24 +18,21 @@ Face record (one row of :data:`RECORD_WIDTH` float64 per face): ``a`` (0:3), ``a
 ``ac`` (6:9), ``e_v`` (9:12), ``e_w`` (12:15) and the degenerate flag (15).
 
 Compiled code is cached on disk (``cache=True``). Numba checks only a function's own source
-file for changes: after editing this module, delete the cached ``nearest_compiled.*`` entries
-(``__pycache__`` next to it, or under ``NUMBA_CACHE_DIR``), since they inline these functions.
+file for changes: after editing this module, delete the cached ``compiled.*`` entries of
+:mod:`gsverse_format.nearest.compiled` (``__pycache__`` next to it, or under
+``NUMBA_CACHE_DIR``), since they inline these functions.
 """
 from __future__ import annotations
 
-from typing import Any, Callable
-
 import numpy as np
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
-from .backend import configure_numba
-from .nearest_reference import DEGENERATE_RATIO
+from ..backend import configure_numba
+from .reference import DEGENERATE_RATIO
 
 configure_numba()
 
-__all__ = ["RECORD_WIDTH", "fetch_add", "min3", "max3", "f32_down", "f32_up", "closest_point",
+__all__ = ["RECORD_WIDTH", "min3", "max3", "f32_down", "f32_up", "closest_point",
            "face_record", "face_records"]
 
 #: float64 columns of a face record.
@@ -42,22 +40,6 @@ RECORD_WIDTH = 16
 _R_DEG = 15               # column of the degenerate flag
 
 # --------------------------------------------------------------------------- helpers
-
-@intrinsic
-def fetch_add(typingctx: Any, arr: Any, val: Any) -> tuple[Any, Callable[..., Any]]:
-    """Atomically add ``val`` to ``arr[0]`` (int64) and return the previous value."""
-    sig = types.int64(arr, types.int64)
-
-    def codegen(context, builder, signature, args):
-        a, v = args
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, a)
-        ptr = cgutils.get_item_pointer(context, builder, aryty, ary,
-                                       [context.get_constant(types.intp, 0)])
-        return builder.atomic_rmw("add", ptr, v, "monotonic")
-
-    return sig, codegen
-
 
 @njit(cache=True, inline="always")
 def _nanmax(a, b):

@@ -44,7 +44,7 @@ Ties
     ``chunk``.
 
 Implementations
-    This module is the vectorised numpy reference. :mod:`gsverse_format.nearest_compiled` (numba)
+    This module is the vectorised numpy reference. :mod:`gsverse_format.nearest.compiled` (numba)
     returns the identical result; :func:`gsverse_format.nearest.nearest_triangles`, which callers
     use, picks one of the two (:mod:`gsverse_format.backend`).
 

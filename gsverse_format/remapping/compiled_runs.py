@@ -1,12 +1,12 @@
 """Compiled (numba) one-pass remap over runs of splats that share a face.
 
 Files store splats sorted by face (spec §Ordering), so the splats of a face are consecutive:
-a *run*. :class:`gsverse_format.remap_fast.FastRemapper` plans the runs once per asset
+a *run*. :class:`gsverse_format.remapping.fast.FastRemapper` plans the runs once per asset
 (:func:`plan_runs`) and then remaps every frame in **one parallel region**: each thread takes a
 chunk of ``CHUNK`` consecutive splats at a time from a shared counter (dynamic scheduling);
 for a chunk it first computes the faces of its runs into the chunk's rows of a per-run table
 (float64, stored in float32: the values the two-pass table of
-:mod:`gsverse_format.remap_compiled` holds), then streams the chunk's splats, each reading its
+:mod:`gsverse_format.remapping.compiled` holds), then streams the chunk's splats, each reading its
 run's row (still in cache). Every multiple of ``CHUNK`` starts a run, so each run, and its
 table row, belongs to exactly one chunk: no two threads write the same row.
 
@@ -27,25 +27,19 @@ grouped by face (more runs than faces plus chunks) keep the two passes.
 
 The kernels take the chunk size as an argument (from the :class:`RunPlan`), so a kernel loaded
 from the on-disk cache (``cache=True``) can never disagree with the plan. numba checks only this
-file for changes: after editing the inlined ``*_row`` functions of
-:mod:`gsverse_format.remap_compiled`, delete the cached ``remap_compiled_runs.*`` entries
-(``__pycache__`` next to it, or under ``NUMBA_CACHE_DIR``).
+file for changes: after editing the inlined ``*_row`` and ``*_span`` functions of
+:mod:`gsverse_format.remapping.compiled` or :func:`gsverse_format.compiled_chunks.next_chunk`,
+delete the cached ``compiled_runs.*`` entries (``remapping/__pycache__``, or under
+``NUMBA_CACHE_DIR``).
 """
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 from numba import njit, prange
 
-from .backend import configure_numba
-from .nearest_compiled_kernel import fetch_add as _fetch_add
-from .remap_compiled import (CHUNK, games_face_row, games_splat_row, local_face_row, local_splat_row,
-                             rigid_pair_row)
-
-#: The atomic fetch-and-add intrinsic, typed ``Any`` for the type checker (numba resolves
-#: globals by value, so the alias compiles to the same instruction).
-fetch_add: Any = _fetch_add
+from ..backend import configure_numba
+from ..compiled_chunks import next_chunk
+from .compiled import CHUNK, games_face_row, games_splat_span, local_face_row, local_splat_span
 
 configure_numba()
 
@@ -103,20 +97,14 @@ def local_runs(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid:
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, chunk, n)
             if c >= n_chunks:
                 break
             for r in range(chunk_run[c], chunk_run[c + 1]):
                 local_face_row(vertices, faces, rest, rigid, run_face[r], table[r], qrun, r,
                                want)
-            if want:
-                for i in range(c * chunk, min(c * chunk + chunk, n)):
-                    r = run_of[i]
-                    local_splat_row(consts, table[r], means, cov6, i)
-                    rigid_pair_row(qrun, r, table[r, 21], qlocal, slocal, rotations, scales, i)
-            else:
-                for i in range(c * chunk, min(c * chunk + chunk, n)):
-                    local_splat_row(consts, table[run_of[i]], means, cov6, i)
+            local_splat_span(run_of, consts, table, qrun, qlocal, slocal, means, cov6,
+                             rotations, scales, start, stop, want)
 
 
 @njit(parallel=True, cache=True)
@@ -132,11 +120,10 @@ def games_runs(vertices: np.ndarray, faces: np.ndarray, run_face: np.ndarray,
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, chunk, n)
             if c >= n_chunks:
                 break
             for r in range(chunk_run[c], chunk_run[c + 1]):
                 games_face_row(vertices, faces, run_face[r], table[r])
-            for i in range(c * chunk, min(c * chunk + chunk, n)):
-                games_splat_row(consts, table[run_of[i]], means, cov6, rotations, scales, i,
-                                want)
+            games_splat_span(run_of, consts, table, means, cov6, rotations, scales, start, stop,
+                             want)

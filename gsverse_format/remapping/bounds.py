@@ -1,8 +1,9 @@
 """Error bounds of the float32 fast remap against the float64 reference.
 
-:class:`gsverse_format.remap_fast.FastRemapper` (compiled kernels in
-:mod:`gsverse_format.remap_compiled`) stores its results in float32; :func:`float32_error_bounds`
-gives, per splat, how far they may lie from the float64 reference :mod:`gsverse_format.remap_reference`.
+:class:`gsverse_format.remapping.fast.FastRemapper` (compiled kernels in
+:mod:`gsverse_format.remapping.compiled`) stores its results in float32;
+:func:`float32_error_bounds` gives, per splat, how far they may lie from the float64 reference
+:mod:`gsverse_format.remapping.reference`.
 
 Precision (float32 result against the float64 reference, u = 2⁻²⁴ the float32 unit roundoff;
 checked by ``tests/test_remap_fast.py`` and ``tests/test_stability.py``):
@@ -21,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .frames import GAMES_EPS, games_frames, local_frames
-from .model import Anchoring, GamesAnchors
-from .remap_reference import face_matrices, prepare_rest
+from ..frames import GAMES_EPS, games_frames, local_frames
+from ..model import Anchoring, GamesAnchors
+from .reference import face_matrices, prepare_rest
 
 __all__ = ["float32_error_bounds", "F32_UNIT_ROUNDOFF", "MEAN_BOUND_FACTOR", "COV_BOUND_FACTOR"]
 

@@ -1,4 +1,5 @@
-"""Exact nearest-triangle queries (point → closest triangle of a mesh): the public entry points.
+"""Exact nearest-triangle queries (point → closest triangle of a mesh): the entry point,
+:func:`nearest_triangles` (re-exported by :mod:`gsverse_format.nearest`).
 
 :func:`nearest_triangles` returns, for every query point, a triangle whose float64 distance to
 the point is *exactly* the minimum over all selectable triangles — the value a brute-force scan
@@ -8,10 +9,10 @@ smallest face index wins.
 
 Two implementations give identical results, bit for bit:
 
-* :mod:`gsverse_format.nearest_reference`, the vectorised numpy reference, whose docstring
+* :mod:`gsverse_format.nearest.reference`, the vectorised numpy reference, whose docstring
   states the kernel, the certified branch-and-bound search and the tie rule;
-* :mod:`gsverse_format.nearest_compiled`, the compiled search (numba, a BVH traversed per
-  point on all cores), with its kernel in :mod:`gsverse_format.nearest_compiled_kernel`.
+* :mod:`gsverse_format.nearest.compiled`, the compiled search (numba, a BVH traversed per
+  point on all cores), with its kernel in :mod:`gsverse_format.nearest.compiled_kernel`.
 
 This module only chooses between them (``method``, resolved by :mod:`gsverse_format.backend`:
 ``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference; under ``"auto"``
@@ -25,8 +26,8 @@ from numpy.typing import ArrayLike
 
 import numpy as np
 
-from .backend import NEAREST_NUMPY_BELOW, resolve_backend
-from .nearest_reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
+from ..backend import NEAREST_NUMPY_BELOW, resolve_backend
+from .reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
 
 __all__ = ["NearestResult", "nearest_triangles", "closest_points_on_triangles"]
 
@@ -41,11 +42,11 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     an optional (F,) boolean mask of faces never to return (for example degenerate ones).
     Queries run ``chunk`` points at a time; ``progress(done, total)`` is called after each.
     Raises ``ValueError`` on malformed input or when no face is selectable.
-    See :mod:`gsverse_format.nearest_reference` for the exactness guarantee and the tie rule.
+    See :mod:`gsverse_format.nearest.reference` for the exactness guarantee and the tie rule.
 
     ``method`` picks the implementation; both return identical results. ``"numba"`` is the
-    compiled, multi-threaded search of :mod:`gsverse_format.nearest_compiled`, ``"numpy"`` the
-    vectorised reference of :mod:`gsverse_format.nearest_reference`, and ``"auto"`` (default)
+    compiled, multi-threaded search of :mod:`gsverse_format.nearest.compiled`, ``"numpy"`` the
+    vectorised reference of :mod:`gsverse_format.nearest.reference`, and ``"auto"`` (default)
     the process-wide choice of :mod:`gsverse_format.backend`: numba when it can be imported,
     unless ``GSVERSE_BACKEND`` or :func:`~gsverse_format.backend.set_backend` says otherwise,
     and numpy for jobs of fewer than
@@ -57,7 +58,7 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
     if resolve_backend(method, argument="method", size=size,
                        numpy_below=NEAREST_NUMPY_BELOW) == "numba":
-        from .nearest_compiled import nearest_triangles_numba
+        from .compiled import nearest_triangles_numba
 
         return nearest_triangles_numba(points, vertices, faces, exclude=exclude, chunk=chunk,
                                        progress=progress)

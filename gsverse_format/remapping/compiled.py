@@ -1,12 +1,14 @@
 """Compiled (numba) kernels of the per-frame float32 remap.
 
-The mathematics of the float64 reference :mod:`gsverse_format.remap_reference` (``spec/README.md``
-§Remap), reorganized for speed; :class:`gsverse_format.remap_fast.FastRemapper` prepares the
-inputs once per asset and calls these kernels every frame. The per-face and per-splat steps are
-inline functions (``*_row``) shared with the one-pass kernels of
-:mod:`gsverse_format.remap_compiled_runs` (used for splats grouped by face); this module's
+The mathematics of the float64 reference :mod:`gsverse_format.remapping.reference`
+(``spec/README.md`` §Remap), reorganized for speed;
+:class:`gsverse_format.remapping.fast.FastRemapper` prepares the inputs once per asset and calls
+these kernels every frame. The per-face and per-splat steps are inline functions (``*_row``, and
+``*_span`` for a chunk's splats) shared with the one-pass kernels of
+:mod:`gsverse_format.remapping.compiled_runs` (used for splats grouped by face); this module's
 kernels are the two-pass path for other orders, each pass handing out :data:`CHUNK` items at a
-time from a shared counter. Two passes per frame:
+time from a shared counter (:func:`gsverse_format.compiled_chunks.next_chunk`). Two passes per
+frame:
 
 1. **Per face** (:func:`local_faces`, :func:`games_faces`; one pass over F faces, computed in
    float64, stored in a float32 table of :data:`TABLE_WIDTH` columns): the size factor
@@ -33,27 +35,25 @@ Determinism: every per-splat result depends only on that splat's anchors and its
 the order of the splats, the path (one or two passes) or the number of threads; the splat
 steps spell out their fused multiply-adds (no fast-math) so that the compiler cannot round
 differently in different builds of the loop.
-The float32 error against the reference is bounded in :mod:`gsverse_format.remap_bounds`.
+The float32 error against the reference is bounded in :mod:`gsverse_format.remapping.bounds`.
 
-Importing this module imports numba; :mod:`gsverse_format.remap_fast` imports it only when the
-numba backend is chosen. Compiled code is cached on disk (``cache=True``); the cold compile of
-the ``local`` kernels took 9.5 s of CPU (see :mod:`gsverse_format.backend`, "Small inputs").
+Importing this module imports numba; :mod:`gsverse_format.remapping.fast` imports it only when
+the numba backend is chosen. Compiled code is cached on disk (``cache=True``, in
+``remapping/__pycache__`` or under ``NUMBA_CACHE_DIR``); the cold compile of the ``local``
+kernels took 9.5 s of CPU (see :mod:`gsverse_format.backend`, "Small inputs"). numba checks only
+a function's own file for changes: after editing :mod:`gsverse_format.compiled_chunks`, whose
+helpers the kernels inline, delete the cached entries of this module and of
+:mod:`gsverse_format.remapping.compiled_runs`.
 """
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 from numba import njit, prange
 from numba.extending import intrinsic
 
-from .backend import configure_numba
-from .frames import EPS_DEGENERATE, GAMES_EPS
-from .nearest_compiled_kernel import fetch_add as _fetch_add
-
-#: The atomic fetch-and-add intrinsic, typed ``Any`` for the type checker (numba resolves
-#: globals by value, so the alias compiles to the same instruction).
-fetch_add: Any = _fetch_add
+from ..backend import configure_numba
+from ..compiled_chunks import chunk_count, next_chunk
+from ..frames import EPS_DEGENERATE, GAMES_EPS
 
 configure_numba()
 
@@ -368,7 +368,7 @@ def _rigid_pair(ax, ay, az, aw, bx, by, bz, bw):
 
 # --------------------------------------------------------------------------- rows
 # The per-face and per-splat steps shared by the two-pass kernels below and the one-pass
-# kernels of remap_compiled_runs (numba inlines them; both produce the same bits).
+# kernels of compiled_runs (numba inlines them; both produce the same bits).
 
 @njit(cache=True, inline="always")
 def local_face_row(vertices, faces, rest, rigid, f, row, qtab, qi, want_q):
@@ -472,9 +472,37 @@ def games_splat_row(consts, t, means, cov6, rotations, scales, i, want):
         scales[i, 2] = s2
 
 
+# --------------------------------------------------------------------------- spans
+# A chunk's splats, each reading the table row ``row_of[i]``: its face in the two passes below,
+# its run in compiled_runs. ``want``: the rigid pairs (local) or rotations and scales
+# (games) are written too; tested once per chunk, outside the splat loop.
+
+@njit(cache=True, inline="always")
+def local_splat_span(row_of, consts, table, qtab, qlocal, slocal, means, cov6, rotations,
+                     scales, start, stop, want):
+    """``local`` splats ``start .. stop - 1`` (:func:`local_splat_row`, and with ``want`` the
+    rigid pairs of :func:`rigid_pair_row`, q_c from ``qtab[row_of[i]]``)."""
+    if want:
+        for i in range(start, stop):
+            r = row_of[i]
+            local_splat_row(consts, table[r], means, cov6, i)
+            rigid_pair_row(qtab, r, table[r, 21], qlocal, slocal, rotations, scales, i)
+    else:
+        for i in range(start, stop):
+            local_splat_row(consts, table[row_of[i]], means, cov6, i)
+
+
+@njit(cache=True, inline="always")
+def games_splat_span(row_of, consts, table, means, cov6, rotations, scales, start, stop, want):
+    """``games`` splats ``start .. stop - 1`` (:func:`games_splat_row`)."""
+    for i in range(start, stop):
+        games_splat_row(consts, table[row_of[i]], means, cov6, rotations, scales, i, want)
+
+
 # --------------------------------------------------------------------------- two passes
-# Used when the splats are not grouped by face (the one pass of remap_compiled_runs needs
-# runs). Each pass hands out CHUNK items at a time from a shared counter (dynamic scheduling).
+# Used when the splats are not grouped by face (the one pass of compiled_runs needs
+# runs). Each pass hands out CHUNK items at a time from a shared counter (dynamic scheduling,
+# :func:`gsverse_format.compiled_chunks.next_chunk`).
 
 @njit(parallel=True, cache=True)
 def local_faces(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid: bool,
@@ -484,14 +512,14 @@ def local_faces(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid
     when it has rows."""
     nf = faces.shape[0]
     want_q = qface.shape[0] == nf and nf > 0
-    n_chunks = (nf + CHUNK - 1) // CHUNK
+    n_chunks = chunk_count(nf, CHUNK)
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, CHUNK, nf)
             if c >= n_chunks:
                 break
-            for f in range(c * CHUNK, min(c * CHUNK + CHUNK, nf)):
+            for f in range(start, stop):
                 local_face_row(vertices, faces, rest, rigid, f, table[f], qface, f, want_q)
 
 
@@ -506,21 +534,15 @@ def local_splats(face: np.ndarray, consts: np.ndarray, table: np.ndarray, means:
     """
     n = face.shape[0]
     want = rotations.shape[0] == n and n > 0
-    n_chunks = (n + CHUNK - 1) // CHUNK
+    n_chunks = chunk_count(n, CHUNK)
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, CHUNK, n)
             if c >= n_chunks:
                 break
-            if want:
-                for i in range(c * CHUNK, min(c * CHUNK + CHUNK, n)):
-                    f = face[i]
-                    local_splat_row(consts, table[f], means, cov6, i)
-                    rigid_pair_row(qface, f, table[f, 21], qlocal, slocal, rotations, scales, i)
-            else:
-                for i in range(c * CHUNK, min(c * CHUNK + CHUNK, n)):
-                    local_splat_row(consts, table[face[i]], means, cov6, i)
+            local_splat_span(face, consts, table, qface, qlocal, slocal, means, cov6, rotations,
+                             scales, start, stop, want)
 
 
 @njit(parallel=True, cache=True)
@@ -531,14 +553,14 @@ def games_faces(vertices: np.ndarray, faces: np.ndarray, table: np.ndarray, work
     s1, s2 (18, 19), quaternion of [n, b1, b2] (20:24).
     """
     nf = faces.shape[0]
-    n_chunks = (nf + CHUNK - 1) // CHUNK
+    n_chunks = chunk_count(nf, CHUNK)
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, CHUNK, nf)
             if c >= n_chunks:
                 break
-            for f in range(c * CHUNK, min(c * CHUNK + CHUNK, nf)):
+            for f in range(start, stop):
                 games_face_row(vertices, faces, f, table[f])
 
 
@@ -552,12 +574,12 @@ def games_splats(face: np.ndarray, consts: np.ndarray, table: np.ndarray, means:
     """
     n = face.shape[0]
     want = rotations.shape[0] == n and n > 0
-    n_chunks = (n + CHUNK - 1) // CHUNK
+    n_chunks = chunk_count(n, CHUNK)
     counter = np.zeros(1, np.int64)
     for _ in prange(workers):
         while True:
-            c = fetch_add(counter, 1)
+            c, start, stop = next_chunk(counter, CHUNK, n)
             if c >= n_chunks:
                 break
-            for i in range(c * CHUNK, min(c * CHUNK + CHUNK, n)):
-                games_splat_row(consts, table[face[i]], means, cov6, rotations, scales, i, want)
+            games_splat_span(face, consts, table, means, cov6, rotations, scales, start, stop,
+                             want)

@@ -1,0 +1,18 @@
+"""Exact nearest-triangle search (point → closest triangle of a mesh), used by the binding.
+
+* :mod:`.dispatch`: :func:`nearest_triangles`, the entry point, choosing an implementation
+  (:mod:`gsverse_format.backend`);
+* :mod:`.reference`: the vectorised numpy reference, whose docstring states the point–triangle
+  kernel, the certified branch-and-bound search and the tie rule;
+* :mod:`.compiled` (numba): a BVH traversed per point on all cores, bit-identical to the
+  reference; its scalar kernel in :mod:`.compiled_kernel`.
+
+Importing this package does not import numba; :mod:`.dispatch` imports the compiled modules only
+when the numba backend is chosen.
+"""
+from __future__ import annotations
+
+# No __all__: the API reference (pdoc, scripts/api_docs.py) gives each module of a package a
+# page of its own only when the package has none.
+from .dispatch import nearest_triangles
+from .reference import NearestResult, closest_points_on_triangles
