@@ -6,6 +6,7 @@
 import * as pc from 'playcanvas';
 import { AnchorGpuData, AnchoredSplat } from '../../src/playcanvas/index.js';
 import { RemapProbe } from '../../src/playcanvas/probe.js';
+import { describeBackend, startApp } from '../../conformance/page/engine-page.js';
 import { computeRest } from '../../src/rest.js';
 import { remapCpuRotationScale } from '../../src/remap-cpu.js';
 
@@ -121,26 +122,9 @@ function deform(rest, out, t) {
 /** @param {{backend?: 'webgl2'|'webgpu'}} [options] */
 async function init(options = {}) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    const backend = options.backend || 'webgl2';
-    const graphicsDevice = await pc.createGraphicsDevice(canvas, { deviceTypes: [backend], antialias: false });
-    if (graphicsDevice.deviceType !== backend) throw new Error(`no ${backend} device (got ${graphicsDevice.deviceType})`);
-    app = new pc.Application(canvas, { graphicsDevice });
-    const device = /** @type {any} */ (app.graphicsDevice);
-    if (device.isWebGPU) {
-        const info = device.gpuAdapter?.info || {};
-        return {
-            engine: `PlayCanvas ${pc.version}`, device: device.deviceType,
-            renderer: `WebGPU adapter: ${[info.vendor, info.architecture, info.device, info.description].filter(Boolean).join(' ') || 'unknown'}`,
-            userAgent: navigator.userAgent, cores: navigator.hardwareConcurrency,
-        };
-    }
-    const gl = device.gl;
-    const info = gl.getExtension('WEBGL_debug_renderer_info');
-    return {
-        engine: `PlayCanvas ${pc.version}`, device: device.deviceType,
-        renderer: info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER),
-        userAgent: navigator.userAgent, cores: navigator.hardwareConcurrency,
-    };
+    app = await startApp(canvas, { backend: options.backend });
+    const b = describeBackend(app);
+    return { engine: `${b.engine} ${b.engine_version}`, device: b.device, renderer: b.renderer, userAgent: b.user_agent, cores: navigator.hardwareConcurrency };
 }
 
 /**

@@ -7,6 +7,7 @@
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
 import { RemapProbe } from '../../src/playcanvas/probe.js';
+import { describeBackend, startApp } from './engine-page.js';
 
 /** @type {pc.Application|null} */
 let app = null;
@@ -34,41 +35,8 @@ async function fetchBytes(url) {
  */
 async function init(options = {}) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    const backend = options.backend || 'webgl2';
-    const graphicsDevice = await pc.createGraphicsDevice(canvas, { deviceTypes: [backend], antialias: false, alpha: false });
-    if (graphicsDevice.deviceType !== backend) throw new Error(`no ${backend} device (got ${graphicsDevice.deviceType})`);
-    app = new pc.Application(canvas, { graphicsDevice });
-    const device = /** @type {any} */ (app.graphicsDevice);
-    if (device.isWebGPU) {
-        const info = device.gpuAdapter?.info || {};
-        return {
-            engine: 'PlayCanvas',
-            engine_version: pc.version,
-            device: device.deviceType,
-            renderer: `WebGPU adapter: ${[info.vendor, info.architecture, info.device, info.description].filter(Boolean).join(' ') || 'unknown'}`,
-            vendor: info.vendor || '',
-            version: 'WebGPU',
-            shading_language: 'WGSL',
-            float_precision: 'f32',
-            user_agent: navigator.userAgent,
-        };
-    }
-    const gl = device.gl;
-    const info = gl.getExtension('WEBGL_debug_renderer_info');
-    return {
-        engine: 'PlayCanvas',
-        engine_version: pc.version,
-        device: device.deviceType,
-        renderer: info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER),
-        vendor: info ? gl.getParameter(info.UNMASKED_VENDOR_WEBGL) : gl.getParameter(gl.VENDOR),
-        version: gl.getParameter(gl.VERSION),
-        shading_language: gl.getParameter(gl.SHADING_LANGUAGE_VERSION),
-        float_precision: (() => {
-            const p = gl.getShaderPrecisionFormat(gl.FRAGMENT_SHADER, gl.HIGH_FLOAT);
-            return `highp float: precision ${p.precision} bits, range 2^${p.rangeMin}..2^${p.rangeMax}`;
-        })(),
-        user_agent: navigator.userAgent,
-    };
+    app = await startApp(canvas, { backend: options.backend });
+    return describeBackend(app);
 }
 
 /**

@@ -7,6 +7,7 @@
 
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
+import { describeBackend, frame, settleFrames, startApp } from './engine-page.js';
 
 /** @type {pc.Application|null} */
 let app = null;
@@ -34,14 +35,7 @@ async function fetchBytes(url) {
  */
 async function init(options = {}) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    const backend = options.backend || 'webgl2';
-    const graphicsDevice = await pc.createGraphicsDevice(canvas, /** @type {any} */ ({
-        deviceTypes: [backend], antialias: false, alpha: false, preserveDrawingBuffer: true,
-    }));
-    if (graphicsDevice.deviceType !== backend) throw new Error(`no ${backend} device (got ${graphicsDevice.deviceType})`);
-    app = new pc.Application(canvas, { graphicsDevice });
-    app.setCanvasFillMode(pc.FILLMODE_NONE);
-    app.autoRender = false;
+    app = await startApp(canvas, { backend: options.backend, readback: true });
     camera = new pc.Entity('camera');
     camera.addComponent('camera', {
         clearColor: new pc.Color(0, 0, 0, 1),
@@ -52,43 +46,7 @@ async function init(options = {}) {
     app.root.addChild(camera);
     app.scene.on('gsplat:sorted', () => { sorts++; });
     app.start();
-    const device = /** @type {any} */ (app.graphicsDevice);
-    const gl = device.gl;
-    const info = gl?.getExtension('WEBGL_debug_renderer_info');
-    return {
-        engine: 'PlayCanvas', engine_version: pc.version, device: device.deviceType,
-        renderer: gl ? (info ? gl.getParameter(info.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER)) : 'WebGPU',
-    };
-}
-
-function frame() {
-    return new Promise((resolve) => {
-        const a = /** @type {pc.Application} */ (app);
-        a.once('frameend', () => resolve(undefined));
-        a.renderNextFrame = true;
-    });
-}
-
-/** @returns {Uint8Array} top-down RGBA8 pixels of the canvas */
-function pixels() {
-    const device = /** @type {any} */ ((/** @type {pc.Application} */ (app)).graphicsDevice);
-    const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    const w = canvas.width, h = canvas.height;
-    if (device.isWebGPU) {
-        const copy = document.createElement('canvas');
-        copy.width = w;
-        copy.height = h;
-        const ctx = /** @type {CanvasRenderingContext2D} */ (copy.getContext('2d'));
-        ctx.drawImage(canvas, 0, 0);
-        return new Uint8Array(ctx.getImageData(0, 0, w, h).data.buffer);
-    }
-    const gl = device.gl;
-    const px = new Uint8Array(w * h * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.readPixels(0, 0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
-    const out = new Uint8Array(w * h * 4);
-    for (let y = 0; y < h; ++y) out.set(px.subarray((h - 1 - y) * w * 4, (h - y) * w * 4), y * w * 4);
-    return out;
+    return describeBackend(app);
 }
 
 /**
@@ -101,16 +59,10 @@ function pixels() {
  * @param {{sortWaitMs: number, maxFrames: number}} limits
  */
 async function settle(sortsBefore, anchored, limits) {
+    const a = /** @type {pc.Application} */ (app);
     const t0 = performance.now();
-    while ((sorts === sortsBefore || anchored.some((s) => s.sortPending)) && performance.now() - t0 < limits.sortWaitMs) await frame();
-    let previous = null, same = 0, px = pixels();
-    for (let i = 0; i < limits.maxFrames && same < 2; ++i) {
-        await frame();
-        px = pixels();
-        same = previous && previous.every((v, k) => v === px[k]) ? same + 1 : 0;
-        previous = px;
-    }
-    return px;
+    while ((sorts === sortsBefore || anchored.some((s) => s.sortPending)) && performance.now() - t0 < limits.sortWaitMs) await frame(a);
+    return settleFrames(a, { identical: 2, maxFrames: limits.maxFrames });
 }
 
 /**

@@ -5,55 +5,18 @@
 
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
+import { canvasPixels, settleFrames, startApp } from './engine-page.js';
 
 /** @type {pc.Application|null} */
 let app = null;
 /** @type {any} */
 let loaded = null;
 
-/** Render one frame and wait for it. */
-function frame() {
-    return new Promise((resolve) => {
-        const a = /** @type {pc.Application} */ (app);
-        a.once('frameend', () => resolve(undefined));
-        a.renderNextFrame = true;
-    });
-}
+/** Render until the picture stops changing (the engine sorts asynchronously). */
+const settle = () => settleFrames(/** @type {pc.Application} */ (app), { identical: 1 });
 
-/**
- * Render until two consecutive frames are identical and not blank (the engine sorts splats
- * asynchronously, so a change shows a frame or two later); at most 60 frames.
- */
-async function settle() {
-    let previous = null;
-    for (let i = 0; i < 60; ++i) {
-        await frame();
-        const px = pixels();
-        let lit = false;
-        for (let k = 0; k < px.length && !lit; k += 4) lit = px[k] + px[k + 1] + px[k + 2] > 24;
-        if (lit && previous && previous.every((v, k) => v === px[k])) return;
-        previous = px;
-    }
-}
-
-/** @returns {Uint8Array} the canvas pixels (RGBA; rows bottom-up on WebGL2, top-down on WebGPU) */
-function pixels() {
-    const device = /** @type {any} */ ((/** @type {pc.Application} */ (app)).graphicsDevice);
-    if (device.isWebGPU) {
-        const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-        const copy = document.createElement('canvas');
-        copy.width = canvas.width;
-        copy.height = canvas.height;
-        const ctx = /** @type {CanvasRenderingContext2D} */ (copy.getContext('2d'));
-        ctx.drawImage(canvas, 0, 0);
-        return new Uint8Array(ctx.getImageData(0, 0, copy.width, copy.height).data.buffer);
-    }
-    const gl = device.gl;
-    const px = new Uint8Array(gl.drawingBufferWidth * gl.drawingBufferHeight * 4);
-    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
-    gl.readPixels(0, 0, gl.drawingBufferWidth, gl.drawingBufferHeight, gl.RGBA, gl.UNSIGNED_BYTE, px);
-    return px;
-}
+/** @returns {Uint8Array} the canvas pixels (RGBA, rows top to bottom) */
+const pixels = () => canvasPixels(/** @type {pc.Application} */ (app));
 
 /**
  * At rest, the remapped splats must render like the engine's own rest pose: compare the
@@ -112,13 +75,7 @@ function extent() {
  */
 async function load(url, options = {}) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    const backend = options.backend || 'webgl2';
-    const graphicsDevice = await pc.createGraphicsDevice(canvas, /** @type {any} */ ({ deviceTypes: [backend], antialias: false, preserveDrawingBuffer: true }));
-    if (graphicsDevice.deviceType !== backend) throw new Error(`no ${backend} device (got ${graphicsDevice.deviceType})`);
-    app = new pc.Application(canvas, { graphicsDevice });
-    app.setCanvasFillMode(pc.FILLMODE_NONE);
-    app.setCanvasResolution(pc.RESOLUTION_FIXED, 256, 256);
-    app.autoRender = false;
+    app = await startApp(canvas, { backend: options.backend, readback: true, width: 256, height: 256 });
     const camera = new pc.Entity('camera');
     camera.addComponent('camera', { clearColor: new pc.Color(0, 0, 0), fov: 40 });
     camera.setPosition(0, 0, 6);
