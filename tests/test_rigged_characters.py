@@ -113,7 +113,7 @@ def _finish(path, b: BufferBuilder, doc: dict) -> None:
     path.write_bytes(pack_glb(doc, blob))
 
 
-def robot(path, *, joints_1: str | None = None) -> None:
+def robot(path, *, joints_1: str | None = None, bent: bool = False) -> None:
     """One skinned node (with a transform glTF ignores) drawing a tube in two primitives
     that share one skin; the skeleton hangs under a rotated, moved armature node, so what
     glTF draws at rest is ARMATURE · POSITION (the inverse bind matrices leave it out)."""
@@ -134,8 +134,11 @@ def robot(path, *, joints_1: str | None = None) -> None:
     upper = _primitive(b, v[24:], f[48:] - 24, j[24:], w[24:], extra and {
         k: (a[24:], c) for k, (a, c) in extra.items()})
     ibm = _ibm(b, [_matrix((0, -y, 0)) for y in (0.0, STEP, 2 * STEP)])
+    skeleton = _skeleton_nodes()
+    if bent:   # the skeleton's rest (node values) is not the pose it was bound in
+        skeleton[2]["rotation"] = _quat((0, 0, 1), 35)
     doc = {"scenes": [{"nodes": [0, 1]}],
-           "nodes": [{"name": "robot", "mesh": 0, "skin": 0, **BODY_NODE}, *_skeleton_nodes()],
+           "nodes": [{"name": "robot", "mesh": 0, "skin": 0, **BODY_NODE}, *skeleton],
            "meshes": [{"name": "robot", "primitives": [lower, upper]}],
            "skins": [{"joints": [2, 3, 4], "inverseBindMatrices": ibm}],
            "animations": [_animation(b, 2, 3, 4)]}
@@ -322,3 +325,19 @@ def test_morph_targets_on_two_nodes_are_refused(tmp_path):
     with pytest.raises(FormatError, match="morph targets on 2 nodes") as info:
         read_mesh(src)
     assert str(src) in str(info.value)
+
+
+def test_a_rest_pose_that_is_not_the_bind_pose_is_rebound_with_a_note(tmp_path):
+    src = tmp_path / "bent.glb"
+    robot(src, bent=True)
+    g = pygltflib.GLTF2().load(str(src))
+    mesh = read_mesh(src)
+    np.testing.assert_allclose(_drawn(g, _parts(g), None), mesh.vertices, atol=1e-5)
+    assert mesh.rig is not None and any("rebound" in n for n in mesh.rig.notes)
+    _splats_on_drawn_rest(g, tmp_path / "splats.glb", 200)
+    summary = gv.convert(tmp_path / "splats.glb", tmp_path / "out.glb", mesh=str(src))
+    assert any("bent: " in n and "rebound" in n for n in summary.notes), summary.notes
+    o = pygltflib.GLTF2().load(str(tmp_path / "out.glb"))
+    anchor = [i for i, n in enumerate(o.nodes) if n.skin is not None][0]
+    rest = gv.read(tmp_path / "out.glb").anchored[0].anchoring.mesh.vertices
+    np.testing.assert_allclose(numpy_skinning(o, anchor, 0.0, None), rest, atol=1e-5)
