@@ -22,6 +22,7 @@ from gsverse_format.errors import FormatError
 from gsverse_format.fit import MeshFitWarning
 from gsverse_format.io.mesh import read_mesh
 from gsverse_format.model import SplatAsset, SplatPrimitive, TriangleMesh
+from gsverse_format.validators.validate import Severity
 
 from helpers import anchor_foot_points, numpy_skinning, surface_splats
 
@@ -223,6 +224,9 @@ def _check_character(src, tmp_path) -> None:
         warnings.simplefilter("error", MeshFitWarning)   # the splats fit the drawn surface
         summary = gv.convert(tmp_path / "splats.glb", out, mesh=str(src))
     assert not any("dropped" in note for note in summary.notes), summary.notes
+    report = gv.validate(out)
+    assert report.count(Severity.ERROR) == 0 and report.count(Severity.WARNING) == 0, \
+        report.to_json()
     asset = gv.read(out)
     prim = asset.anchored[0]
     anchor_rest = prim.anchoring.mesh.vertices.astype(np.float64)
