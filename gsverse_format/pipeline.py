@@ -334,6 +334,9 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     if options.sh_degree is not None and splats.sh_degree > options.sh_degree:
         splats = splats.with_sh_degree(options.sh_degree)
     rigged = mesh.rig is not None
+    if mesh.rig is not None:
+        summary.notes.extend(f"{object_name(options.mesh or summary.input)}: {note}"
+                             for note in mesh.rig.notes)
     if options.faces is not None and mesh.face_count > options.faces:
         from .meshops import decimate, decimation_shortfall
 

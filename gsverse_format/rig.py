@@ -6,17 +6,20 @@ Held by :attr:`gsverse_format.model.TriangleMesh.rig`; read from a skinned/morph
 mesh (spec/README.md §Animated anchor meshes). Indices are the rig's own (into
 :attr:`AnchorRig.nodes`), never the source file's; a writer renumbers them.
 
-Spaces: the mesh's vertices are the un-skinned rest positions in the splat primitive's local
-space. ``root_matrix`` is the transform of the space the rig's root nodes live in (the frame
-change the converter applied), so the skinned vertex of glTF
-``Σ w_k · global(joint_k) · inverseBind_k · v`` with ``global`` starting from ``root_matrix``
-is in the splat primitive's local space as well.
+Spaces: the mesh's vertices are the rest positions in the splat primitive's local space: what
+glTF draws with the skeleton at its nodes' own values (spec §Animated anchor meshes), so that
+the skinned vertex of glTF ``Σ w_k · global(joint_k) · inverseBind_k · v``, with ``global``
+starting from ``root_matrix`` (the transform of the space the rig's root nodes live in: the
+frame change the converter applied), is ``v`` itself at rest and in the splat primitive's
+local space at every pose.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+
+from .quaternion import to_matrix
 
 __all__ = ["RigNode", "RigChannel", "RigAnimation", "AnchorRig", "WEIGHTS_PATH"]
 
@@ -35,6 +38,16 @@ class RigNode:
     scale: np.ndarray = field(default_factory=lambda: np.ones(3))
     matrix: np.ndarray | None = None
     children: list[int] = field(default_factory=list)
+
+    def local(self) -> np.ndarray:
+        """The node's local 4×4 matrix (``matrix``, else T·R·S), float64."""
+        if self.matrix is not None:
+            return np.asarray(self.matrix, dtype=np.float64)
+        m = np.eye(4)
+        m[:3, :3] = to_matrix(np.asarray(self.rotation, np.float64)) * np.asarray(
+            self.scale, np.float64)[None, :]
+        m[:3, 3] = self.translation
+        return m
 
 
 @dataclass
@@ -74,6 +87,23 @@ class AnchorRig:
     weights: list[float] = field(default_factory=list)
     animations: list[RigAnimation] = field(default_factory=list)
     root_matrix: np.ndarray = field(default_factory=lambda: np.eye(4))
+    #: what reading the rig changed or approximated (summary notes of the conversion)
+    notes: list[str] = field(default_factory=list)
+
+    def rest_globals(self) -> np.ndarray:
+        """(N, 4, 4) float64 global matrices of :attr:`nodes` at their own values (the rest
+        pose), from ``root_matrix`` down."""
+        out = np.zeros((len(self.nodes), 4, 4))
+        stack = [(r, np.asarray(self.root_matrix, np.float64)) for r in self.roots]
+        seen = 0
+        while stack:
+            i, parent = stack.pop()
+            seen += 1
+            if seen > len(self.nodes):
+                raise ValueError("the rig's node hierarchy has a cycle or a shared child")
+            out[i] = parent @ self.nodes[i].local()
+            stack.extend((c, out[i]) for c in self.nodes[i].children)
+        return out
 
     @property
     def skinned(self) -> bool:

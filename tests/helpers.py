@@ -95,18 +95,20 @@ def gltf_accessor(g, i: int) -> np.ndarray:
     return np.ndarray((a.count, n), dt, blob, start, (stride, dt.itemsize)).astype(np.float64)
 
 
-def numpy_skinning(g, node_i: int, t: float, animation: int = 0) -> np.ndarray:
-    """glTF morph + linear blend skinning of the mesh of node ``node_i`` at time ``t``
-    (LINEAR channels), written from the glTF spec in plain numpy and scipy: the tests' own
-    reference, independent of :mod:`gsverse_format.poses`."""
+def numpy_skinning(g, node_i: int, t: float, animation: int | None = 0,
+                   primitive: int = 0) -> np.ndarray:
+    """glTF morph + linear blend skinning of ``primitive`` of the mesh of node ``node_i`` at
+    time ``t`` (LINEAR channels; ``animation=None``: the rest pose, the nodes' own values),
+    written from the glTF spec in plain numpy and scipy: the tests' own reference, independent
+    of :mod:`gsverse_format.poses`."""
     nodes = g.nodes
     trs = {i: [np.array(n.translation or [0, 0, 0], float),
                Rotation.from_quat(n.rotation or [0, 0, 0, 1]),
                np.array(n.scale or [1, 1, 1], float)] for i, n in enumerate(nodes)}
-    anim = g.animations[animation]
     mesh = g.meshes[nodes[node_i].mesh]
-    morph = np.array(mesh.weights or [], float)
-    for ch in anim.channels:
+    morph = np.array(getattr(nodes[node_i], "weights", None) or mesh.weights or [], float)
+    for ch in [] if animation is None else g.animations[animation].channels:
+        anim = g.animations[animation]
         s = anim.samplers[ch.sampler]
         keys, vals = gltf_accessor(g, s.input)[:, 0], gltf_accessor(g, s.output)
         tc = float(np.clip(t, keys[0], keys[-1]))
@@ -133,12 +135,15 @@ def numpy_skinning(g, node_i: int, t: float, animation: int = 0) -> np.ndarray:
         return local(i) if i not in parents else world(parents[i]) @ local(i)
 
     node = nodes[node_i]
+    attrs = g.meshes[node.mesh].primitives[primitive].attributes
+    pos = gltf_accessor(g, attrs.POSITION)
+    for w, target in zip(morph, mesh.primitives[primitive].targets or []):
+        pos = pos + w * gltf_accessor(g, target["POSITION"])
+    if node.skin is None:   # not skinned: placed by its node
+        m = world(node_i)
+        return pos @ m[:3, :3].T + m[:3, 3]
     skin = g.skins[node.skin]
     ibm = gltf_accessor(g, skin.inverseBindMatrices).reshape(-1, 4, 4).transpose(0, 2, 1)
-    attrs = g.meshes[node.mesh].primitives[0].attributes
-    pos = gltf_accessor(g, attrs.POSITION)
-    for w, target in zip(morph, mesh.primitives[0].targets or []):
-        pos = pos + w * gltf_accessor(g, target["POSITION"])
     jn, wt = gltf_accessor(g, attrs.JOINTS_0).astype(int), gltf_accessor(g, attrs.WEIGHTS_0)
     mats = np.stack([world(j) @ ibm[k] for k, j in enumerate(skin.joints)])
     homo = np.c_[pos, np.ones(len(pos))]

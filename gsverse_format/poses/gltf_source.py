@@ -11,9 +11,9 @@ reads them (:func:`gsverse_format.io.mesh.read_mesh`), so an asset converted wit
 ``--mesh character.glb`` is posed by ``--source character.glb``.
 
 Matching (:meth:`GltfSource.match`): the anchor mesh must have as many vertices, and its rest
-positions must be the source's rest positions (the skinned/morphed pose with the nodes' own
-transforms and default weights, or the plain positions with node transforms, as a mesh reader
-sees them), up to one of the frame rotations the converter applies (glTF, 3DGS, Z-up), within
+positions must be the source's rest positions (what glTF draws with the nodes' own values and
+the default morph weights: a skinned primitive skinned, not placed by its node's transform;
+what ``gsverse-convert --mesh`` stores as the anchor mesh), up to one of the frame rotations the converter applies (glTF, 3DGS, Z-up), within
 10⁻⁴ of the mesh's bounding-box diagonal. The posed vertices get the same rotation.
 """
 from __future__ import annotations
@@ -86,16 +86,6 @@ class GltfSource:
     def rest_pose(self) -> np.ndarray:
         return self.animation.vertices(None, self.instances)
 
-    def _plain_positions(self) -> np.ndarray:
-        world, _ = self.animation._traverse({})
-        parts = []
-        for inst in self.instances:
-            prim = self.animation.doc["meshes"][inst.mesh]["primitives"][inst.primitive]
-            v = self.animation._floats(prim["attributes"]["POSITION"])[:, :3]
-            m = world[inst.node]
-            parts.append(v @ m[:3, :3].T + m[:3, 3])
-        return np.concatenate(parts)
-
     def match(self, rest: np.ndarray, label: str = "the anchor mesh") -> None:
         """Check that ``rest`` (V, 3) is this source's rest pose (see the module docstring)
         and remember the frame rotation; :class:`FormatError` naming the source otherwise."""
@@ -109,14 +99,13 @@ class GltfSource:
                               f"with --faces)", self.path)
         diag = float(np.linalg.norm(np.ptp(rest, axis=0))) or 1.0
         best = np.inf
-        for candidate in (mine, self._plain_positions()):
-            for frame in FRAMES.values():
-                r = np.asarray(frame.to_gltf, dtype=np.float64)
-                err = float(np.abs(candidate @ r.T - rest).max())
-                best = min(best, err)
-                if err <= MATCH_TOLERANCE * diag:
-                    self.rotation = r
-                    return
+        for frame in FRAMES.values():
+            r = np.asarray(frame.to_gltf, dtype=np.float64)
+            err = float(np.abs(mine @ r.T - rest).max())
+            best = min(best, err)
+            if err <= MATCH_TOLERANCE * diag:
+                self.rotation = r
+                return
         raise FormatError(f"its mesh's rest positions differ from {label}'s by up to "
                           f"{best:.3g} ({best / diag:.2g} of the mesh's size; vertex order and "
                           f"positions must be the same)", self.path)

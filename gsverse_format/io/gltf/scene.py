@@ -252,16 +252,23 @@ def read_gltf_triangles(path: str | os.PathLike, *,
     """All TRIANGLES primitives of the default scene as one mesh, node transforms applied.
 
     For reading an anchor mesh supplied as ``.glb``/``.gltf`` (e.g. a TRELLIS export). Face
-    order: meshes in scene traversal order, primitives and triangles in file order. Skins and
-    morph targets are not applied (the bind pose is used); a scene drawing one skinned and/or
-    morphed primitive keeps them as ``TriangleMesh.rig`` (:func:`.rig.read_rig`). Same
-    hardening and errors as :func:`~.reader.read_gltf`.
+    order: meshes in scene traversal order, primitives and triangles in file order. A scene
+    with skins, morph targets or animated mesh nodes is read as what glTF draws at rest (a
+    skinned primitive skinned with the skeleton at its nodes' values, not placed by its node's
+    transform, which glTF ignores) and keeps its rig as ``TriangleMesh.rig``
+    (:func:`.rig_read.read_rig`). Same hardening and errors as :func:`~.reader.read_gltf`.
     """
     spath = os.fspath(path)
-    from .rig import read_rig
+    from .rig_read import read_rig
 
     with input_errors(spath, "mesh"):
         document = open_document(spath, max_bytes)
         mesh = scene_triangles(document)
-        mesh.rig = read_rig(document, node_instances(document.doc))
+        found = read_rig(document, node_instances(document.doc))
+        if found is not None:
+            rig, rest = found
+            if np.abs(rest).max(initial=0.0) > np.finfo(np.float32).max:
+                raise FormatError("skinning the mesh at rest gives vertex coordinates beyond "
+                                  "the float32 range")
+            mesh = TriangleMesh(rest, mesh.faces, rig=rig)
     return mesh
