@@ -11,6 +11,8 @@
    source's own frame;
 4. rotate that into the glTF frame (:func:`to_gltf`): the one place where a source's
    coordinates change frame (the frames are :data:`gsverse_format.io.registry.FRAMES`);
+   without the frame change (``frame_change=False``) they stay in the source's frame, which
+   the asset's ``frame`` names and a glTF or USD output records (``asset.extras.gsverse``);
 5. reconstruct an anchor mesh from the splats when the source has none
    (:func:`gsverse_format.converters.reconstruct.reconstruct_mesh`, about
    ``reconstruct_faces`` faces);
@@ -117,7 +119,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                     prim.splats = prim.splats.with_sh_degree(options.sh_degree)
         if options.plain:
             asset = SplatAsset([SplatPrimitive(p.splats, None, p.name, p.khr)
-                                for p in asset.primitives], asset.generator)
+                                for p in asset.primitives], asset.generator, frame=asset.frame)
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
     from .scene import anchor_scene, finish_physics, read_scene_meshes
@@ -162,6 +164,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
 
 
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
+    asset.frame = result.frame   # the source's, without the frame change: the output records it
                 options: SourceOptions | None = None, *, frame_change: bool = True,
                 reconstruct_faces: int | None = None,
                 progress: Progress | None = None) -> SourceResult:
