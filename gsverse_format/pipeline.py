@@ -122,7 +122,8 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                                 for p in asset.primitives], asset.generator, frame=asset.frame)
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
-    from .scene import anchor_scene, finish_physics, read_scene_meshes
+    from .scene import (anchor_scene, finish_physics, normalize_skin_weights,
+                        read_scene_meshes)
 
     source = options.source
     if source == "auto":
@@ -140,10 +141,15 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         result = load_source(source, input_path, options.mesh, src_options, frame_change=False)
         more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change)
         result = to_gltf(result) if options.frame_change else result
+        read = list(zip([result.mesh, *more], options.meshes))
     else:
         result = load_source(source, input_path, options.mesh, src_options,
                              frame_change=options.frame_change,
                              reconstruct_faces=reconstruct_faces, progress=progress)
+        read = [(result.mesh, options.mesh or input_path)]
+    for mesh, mesh_path in read:   # a rig's skin weights as readers use them
+        if mesh is not None:
+            normalize_skin_weights(mesh, mesh_path, options, summary)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
     if result.inputs:  # the files a source folder's loader read, in place of the whole folder
@@ -158,13 +164,13 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                              summary)
     else:
         asset = _anchor(result, options, progress, summary)
+    asset.frame = result.frame   # the source's, without the frame change: the output records it
     del result   # the source's splats: the asset holds its own (sorted) copies
     finish_physics(asset, options, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)
 
 
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
-    asset.frame = result.frame   # the source's, without the frame change: the output records it
                 options: SourceOptions | None = None, *, frame_change: bool = True,
                 reconstruct_faces: int | None = None,
                 progress: Progress | None = None) -> SourceResult:
