@@ -440,11 +440,16 @@ class Collider:
 @dataclass
 class SplatAsset:
     """What one file holds: splat primitives, anchored or plain (static), and the colliders
-    of its anchor meshes."""
+    of its anchor meshes. ``frame`` is the coordinate frame the values are in (a key of
+    :data:`gsverse_format.io.registry.FRAMES`): ``"gltf"`` (+Y up), or the source's frame for
+    an asset converted without the frame change (``gsverse-convert --no-frame-change``),
+    recorded in the file (glTF ``asset.extras.gsverse.frame``, USD ``customLayerData``) so
+    that posed outputs are written in that frame too."""
 
     primitives: list[SplatPrimitive] = field(default_factory=list)
     generator: str | None = None
     colliders: list[Collider] = field(default_factory=list)
+    frame: str = "gltf"
 
     @property
     def anchored(self) -> list[SplatPrimitive]:

@@ -11,6 +11,8 @@
    source's own frame;
 4. rotate that into the glTF frame (:func:`to_gltf`): the one place where a source's
    coordinates change frame (the frames are :data:`gsverse_format.io.registry.FRAMES`);
+   without the frame change (``frame_change=False``) they stay in the source's frame, which
+   the asset's ``frame`` names and a glTF or USD output records (``asset.extras.gsverse``);
 5. reconstruct an anchor mesh from the splats when the source has none
    (:func:`gsverse_format.converters.reconstruct.reconstruct_mesh`, about
    ``reconstruct_faces`` faces);
@@ -117,10 +119,11 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                     prim.splats = prim.splats.with_sh_degree(options.sh_degree)
         if options.plain:
             asset = SplatAsset([SplatPrimitive(p.splats, None, p.name, p.khr)
-                                for p in asset.primitives], asset.generator)
+                                for p in asset.primitives], asset.generator, frame=asset.frame)
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
-    from .scene import anchor_scene, finish_physics, read_scene_meshes
+    from .scene import (anchor_scene, finish_physics, normalize_skin_weights,
+                        read_scene_meshes)
 
     source = options.source
     if source == "auto":
@@ -138,10 +141,15 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         result = load_source(source, input_path, options.mesh, src_options, frame_change=False)
         more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change)
         result = to_gltf(result) if options.frame_change else result
+        read = list(zip([result.mesh, *more], options.meshes))
     else:
         result = load_source(source, input_path, options.mesh, src_options,
                              frame_change=options.frame_change,
                              reconstruct_faces=reconstruct_faces, progress=progress)
+        read = [(result.mesh, options.mesh or input_path)]
+    for mesh, mesh_path in read:   # a rig's skin weights as readers use them
+        if mesh is not None:
+            normalize_skin_weights(mesh, mesh_path, options, summary)
     summary.notes.extend(result.notes)
     summary.check = dict(result.check)
     if result.inputs:  # the files a source folder's loader read, in place of the whole folder
@@ -156,6 +164,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                              summary)
     else:
         asset = _anchor(result, options, progress, summary)
+    asset.frame = result.frame   # the source's, without the frame change: the output records it
     del result   # the source's splats: the asset holds its own (sorted) copies
     finish_physics(asset, options, summary)
     return _finish(asset, output_path, options, protect, summary, progress, start)

@@ -21,10 +21,48 @@ import numpy as np
 
 from .quaternion import to_matrix
 
-__all__ = ["RigNode", "RigChannel", "RigAnimation", "AnchorRig", "WEIGHTS_PATH"]
+__all__ = ["RigNode", "RigChannel", "RigAnimation", "AnchorRig", "WEIGHTS_PATH",
+           "WEIGHT_SUM_TOLERANCE", "normalized_weights", "WeightsNormalized"]
 
 #: ``RigChannel.path`` of the morph-target weights of the anchor mesh's node.
 WEIGHTS_PATH = "weights"
+
+#: |Σ weights − 1| a vertex's skin weights may differ by and count as normalized: float32 sums of
+#: four weights, and 8/16-bit normalized integers (steps 1/255: a sum of four rounded weights
+#: may be off by 2/255 ≈ 8·10⁻³ in theory, exporters round to a sum of 255) stay within it.
+WEIGHT_SUM_TOLERANCE = 2e-3
+
+
+@dataclass(frozen=True)
+class WeightsNormalized:
+    """:func:`normalized_weights`: the weights (V, n) float64, how many vertices were not
+    normalized (|Σ − 1| above :data:`WEIGHT_SUM_TOLERANCE`), the largest change of one weight,
+    and the vertices whose weights are all zero."""
+
+    weights: np.ndarray
+    changed: int
+    max_change: float
+    max_sum_error: float
+    all_zero: np.ndarray
+
+
+def normalized_weights(weights: np.ndarray) -> WeightsNormalized:
+    """Skin weights (V, n) as readers use them (spec/README.md §Animated anchor meshes, as
+    three.js's ``SkinnedMesh.normalizeSkinWeights``): each vertex's weights divided by their
+    sum (float64) when it is > 0; a vertex whose weights are all zero gets weight 1 on its first
+    influence (listed in ``all_zero``: a writer refuses it rather than choose a joint)."""
+    w = np.asarray(weights, dtype=np.float64)
+    total = w.sum(axis=1, keepdims=True)
+    zero = total[:, 0] <= 0.0
+    out = np.divide(w, total, out=np.zeros_like(w), where=~zero[:, None])
+    if w.shape[1]:
+        out[zero, 0] = 1.0
+    error = np.abs(total[:, 0] - 1.0)
+    moved = np.abs(out - w).max(axis=1) if w.shape[1] else np.zeros(len(w))
+    changed = ~(error <= WEIGHT_SUM_TOLERANCE) | zero
+    return WeightsNormalized(out, int(np.count_nonzero(changed)),
+                             float(moved.max()) if len(w) else 0.0,
+                             float(error.max()) if len(w) else 0.0, np.flatnonzero(zero))
 
 
 @dataclass

@@ -21,6 +21,12 @@ Does the mesh belong to the splats? (:func:`judge_fit`)
     ``warning:`` line), or with ``--strict`` a :class:`BindingError` before anything is
     written.
 
+Skin weights (:func:`normalize_skin_weights`)
+    The skin weights of a rigged ``--mesh`` are written normalized, as readers use them (spec
+    §Animated anchor meshes, *Skin weights*), with a note on how many vertices changed; with
+    ``--strict`` weights that do not sum to 1 are an error. Negative weights and vertices
+    whose weights are all zero are refused.
+
 Physics-ready anchor meshes (:mod:`gsverse_format.manifold`)
     ``--watertight`` replaces each anchor mesh by a closed 2-manifold before binding, so the
     splats are bound (again, for a source's exact anchors) to the repaired surface;
@@ -37,7 +43,7 @@ import numpy as np
 
 from .binding import BindResult, bind_local
 from .convert_options import ConvertOptions, ConvertSummary
-from .errors import BindingError, GsverseError, UsageError
+from .errors import BindingError, FormatError, GsverseError, UsageError
 from .io.mesh import read_mesh
 from .io.registry import FRAMES
 from .model import (
@@ -100,6 +106,46 @@ def read_scene_meshes(paths: list[str], frame: str, frame_change: bool) -> list[
     if frame_change and FRAMES[frame].name != "gltf":
         meshes = [rotate_mesh(m, FRAMES[frame].to_gltf) for m in meshes]
     return meshes
+
+
+def normalize_skin_weights(mesh: TriangleMesh, path: str, options: ConvertOptions,
+                           summary: ConvertSummary) -> None:
+    """The skin weights of ``mesh``'s rig (from ``path``, a ``--mesh``) normalized in place,
+    as readers use them (:func:`gsverse_format.rig.normalized_weights`), with a summary note
+    on the vertices that changed. Refused (:class:`FormatError` naming ``path``): negative
+    weights, vertices whose weights are all zero (no joint moves them: which one to bind them
+    to is the author's choice), and with ``options.strict`` any vertex whose weights do not sum
+    to 1."""
+    from dataclasses import replace
+
+    from .rig import WEIGHT_SUM_TOLERANCE, normalized_weights
+
+    rig = mesh.rig
+    if rig is None or rig.weights_0 is None:
+        return
+    w = np.asarray(rig.weights_0, dtype=np.float64)
+    if not np.all(np.isfinite(w)):
+        raise FormatError("non-finite skin weights (WEIGHTS_0)", path)
+    negative = np.flatnonzero((w < 0).any(axis=1))
+    if negative.size:
+        raise FormatError(f"negative skin weights (WEIGHTS_0) on {negative.size} vertices "
+                          f"(vertex {negative[0]} first); glTF 2.0 forbids them", path)
+    fixed = normalized_weights(w)
+    if fixed.all_zero.size:
+        raise FormatError(f"{fixed.all_zero.size} vertices have skin weights (WEIGHTS_0) that "
+                          f"are all zero (vertex {fixed.all_zero[0]} first): no joint moves "
+                          f"them; weight them to a joint in the mesh's file", path)
+    mesh.rig = replace(rig, weights_0=fixed.weights.astype(np.float32))
+    if not fixed.changed:
+        return
+    text = (f"the skin weights (WEIGHTS_0) of {fixed.changed} of {len(w)} vertices do not sum "
+            f"to 1 (off by up to {fixed.max_sum_error:.3g}; glTF 2.0: within "
+            f"{WEIGHT_SUM_TOLERANCE:g})")
+    if options.strict:
+        raise FormatError(f"{text} (--strict)", path)
+    summary.notes.append(f"{os.path.basename(path)}: {text}: normalized them, as readers do "
+                         f"(each vertex's weights divided by their sum; weights changed by up "
+                         f"to {fixed.max_change:.3g})")
 
 
 def bind_scene(splats: SplatCloud, meshes: list[TriangleMesh], *, deformation: str = "affine",

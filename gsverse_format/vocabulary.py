@@ -25,7 +25,7 @@ __all__ = ["EXTENSION", "KHR", "PROFILES", "DEFORMATIONS", "BYTE", "UNSIGNED_BYT
            "AnchorField", "ANCHOR_FIELDS", "FIELDS_BY_KEY", "required_fields", "allowed_fields",
            "USD_PROFILE", "USD_DEFORMATION", "USD_MESH", "KHR_ATTRIBUTE_FORMATS", "COV6_ORDER",
            "COV6_INDEX", "SH_C0", "FACE_COUNTS", "DERIVED_KEYS", "ANCHOR_ENCODINGS",
-           "gltf_required_keys"]
+           "gltf_required_keys", "RECORDED_FRAMES", "frame_record", "recorded_frame"]
 
 #: The anchor extension, nested in ``KHR_gaussian_splatting``.
 EXTENSION = "GSVERSE_gaussian_splatting_mesh_anchor"
@@ -151,3 +151,23 @@ COV6_INDEX: tuple[tuple[int, int], ...] = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2
 
 #: Degree-0 spherical-harmonic constant: colour = 0.5 + SH_C0 · DC.
 SH_C0 = 0.28209479177387814
+
+
+#: The coordinate frames other than glTF's that a file records its values to be in (names of
+#: :data:`gsverse_format.io.registry.FRAMES`): an asset converted without the frame change
+#: (``gsverse-convert --no-frame-change``) from a source in one of them holds its values in it.
+#: Recorded as ``{"frame": name}`` under the key ``gsverse`` of glTF ``asset.extras`` and of
+#: the USD root layer's ``customLayerData``; no record means the glTF frame (+Y up).
+RECORDED_FRAMES = ("3dgs", "z-up", "spz-rub")
+
+
+def frame_record(frame: str) -> dict[str, str] | None:
+    """The ``gsverse`` record of an asset whose values are in ``frame``; None for glTF's."""
+    return {"frame": frame} if frame in RECORDED_FRAMES else None
+
+
+def recorded_frame(record: object) -> str:
+    """The frame a file's ``gsverse`` record names (:data:`RECORDED_FRAMES`), else ``"gltf"``
+    (no record, or one this package does not know: extras are informative)."""
+    frame = record.get("frame") if isinstance(record, dict) else None
+    return frame if isinstance(frame, str) and frame in RECORDED_FRAMES else "gltf"

@@ -178,3 +178,18 @@ def test_simple_skin(shared_data, tmp_path):
     gv.convert(splats, out, mesh=str(src))
     errors = _compare(out, 1, rest_is_stored=False)
     print("simple skin", errors)
+
+
+def test_unnormalized_weights_are_normalized(tmp_path):
+    """WEIGHTS_0 that another tool left unnormalized (sums of 1.76, a vertex all zero): the
+    plugin uses them as the reference does (spec *Skin weights*: divided by their sum; all
+    zero, weight 1 on the first influence), not as they are."""
+    from validation_assets import _rigged
+
+    d = _rigged()
+    w = d.values(d.anchor_prim()["attributes"]["WEIGHTS_0"])
+    w[::2] *= 1.76
+    w[1] = 0.0
+    out = d.write(tmp_path, "unnormalized.glb")
+    errors = _compare(out, 1)
+    print("unnormalized", errors)

@@ -20,9 +20,12 @@ RIG_ENTRIES: list[Row] = [
      "JOINTS_0/WEIGHTS_0, their counts differ from POSITION's, or a joint index is not below "
      "the skin's joint count.", _PRIM + "/attributes/{name}",
      "Write JOINTS_0 and WEIGHTS_0 for every vertex, indexing the skin's joints."),
-    (Code.ANCHOR_SKIN_WEIGHTS_NOT_NORMALIZED, "ERROR", _G, "The WEIGHTS_0 of a vertex of "
-     "the skinned anchor primitive do not sum to 1 within 2·10⁻³ (glTF 2.0 requires 1).",
-     _PRIM + "/attributes/WEIGHTS_0", "Normalize the skin weights."),
+    (Code.ANCHOR_SKIN_WEIGHTS_NOT_NORMALIZED, "WARNING", _G, "The WEIGHTS_0 of a vertex of "
+     "the skinned anchor primitive do not sum to 1 within 2·10⁻³ (glTF 2.0: they SHOULD), or "
+     "are all zero. Readers normalize them (each vertex's weights divided by their sum; all "
+     "zero: weight 1 on its first influence), as three.js does; engines that use them as they "
+     "are pose the vertex elsewhere.", _PRIM + "/attributes/WEIGHTS_0",
+     "Normalize the skin weights (gsverse-convert does); weight every vertex."),
     (Code.ANCHOR_MORPH_TARGETS_INVALID, "ERROR", _G, "A morph target of the anchor primitive has "
      "a POSITION whose count differs from the anchor mesh's, or the default weights' count "
      "differs from the number of targets.", _PRIM + "/targets/{k}/POSITION",

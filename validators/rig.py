@@ -7,13 +7,12 @@ from __future__ import annotations
 import numpy as np
 
 from gsverse_format.codes import Code
+from gsverse_format.rig import WEIGHT_SUM_TOLERANCE
 
 from .container import Context
 
 __all__ = ["check_rig", "WEIGHT_SUM_TOLERANCE"]
 
-#: |Σ weights − 1| allowed per vertex (float storage and normalized integers).
-WEIGHT_SUM_TOLERANCE = 2e-3
 
 
 def _is_index(value: object, size: int) -> bool:
@@ -88,12 +87,16 @@ def check_rig(ctx: Context, m: int, p: int, node_i: int, vertex_count: int) -> N
             ctx.issues.add(Code.ANCHOR_SKIN_ATTRIBUTES_INVALID, f"{bad.size} vertices have a "
                            f"JOINTS_0 index not below the skin's {len(joints)} joints",
                            pointer=f"{pointer}/attributes/JOINTS_0", count=int(bad.size))
-    if "WEIGHTS_0" in arrays:
-        error = np.abs(arrays["WEIGHTS_0"].sum(axis=1) - 1.0)
+    if "WEIGHTS_0" in arrays:   # a warning: readers normalize them (spec, as three.js)
+        total = arrays["WEIGHTS_0"].sum(axis=1)
+        error = np.abs(total - 1.0)
         bad = np.flatnonzero(~(error <= WEIGHT_SUM_TOLERANCE))
+        zero = int(np.count_nonzero(total == 0.0))
         if bad.size:
             ctx.issues.add(Code.ANCHOR_SKIN_WEIGHTS_NOT_NORMALIZED, f"{bad.size} vertices have "
-                           f"WEIGHTS_0 summing to 1 ± {float(error[bad].max()):.3g}",
+                           f"WEIGHTS_0 summing to 1 ± {float(error[bad].max()):.3g}"
+                           + (f" ({zero} all zero)" if zero else "") + "; readers normalize "
+                           "them, engines that do not pose those vertices elsewhere",
                            pointer=f"{pointer}/attributes/WEIGHTS_0", count=int(bad.size))
 
 

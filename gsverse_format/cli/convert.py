@@ -227,8 +227,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "and vertex order of the written anchor mesh (see spec/usd.md)")
     p.add_argument("--strict", action="store_true",
                    help="fail (exit 1, nothing written) when an anchor mesh does not fit its "
-                        "splats (far from them, in other units or another frame), instead of "
-                        "warning")
+                        "splats (far from them, in other units or another frame), or when the "
+                        "skin weights of a rigged --mesh do not sum to 1, instead of a warning "
+                        "or note")
     add_json(p)
     add_quiet(p)
     add_version(p, PROG)

@@ -3,7 +3,8 @@
     gsverse-pose ASSET OUT [--times T... | --fps F [--duration D]] [--source FILE]
                  [--animation NAME|INDEX] [--deform KIND=AMOUNT ...]
                  [--to ply|glb|usda|usdc|usd|usdz] [--vat OUT.exr [--vat-mode position|offset]
-                 [--vat-half] [--vat-width N] [--vat-normalize]] [-w] [--json] [-q]
+                 [--vat-half] [--vat-width N] [--vat-normalize]] [--no-frame-change]
+                 [-w] [--json] [-q]
 
 The anchor mesh is posed at every time by the source (:mod:`gsverse_format.poses`): the
 asset's own skin/morph targets/animations by default, or ``--source`` (a skinned/morphed glTF
@@ -24,6 +25,14 @@ primitives stay.
   ``usd`` meaning ``usda``).
 
 and with ``--vat`` an EXR vertex-animation texture of the anchor mesh over the sampled times.
+
+Frames. Posed files are written in the frame the asset was converted in: an asset converted
+with the frame change (the default) is in glTF's frame and a posed PLY is rotated into the
+3DGS frame (180° about Z), as ``gsverse-convert`` writes PLY; an asset converted with
+``--no-frame-change`` records the source's frame (glTF ``asset.extras.gsverse.frame``, USD
+``customLayerData``) and its posed files keep the values as they are, so a posed PLY at rest
+gives back the input's positions. ``--no-frame-change`` does the same for an asset that records
+nothing (written by another tool without the frame change).
 
 Times. Quick looks alone (``--deform`` without ``--source``) are one pose: they take one time,
 t = 0, by default; several times are refused unless a look changes with time (``shake``), so no
@@ -133,6 +142,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "suffix, which --to must match")
     p.add_argument("--format", choices=tuple(FORMATS),
                    help="the older spelling of --to: ply, glb, or usd (= usda)")
+    p.add_argument("--no-frame-change", action="store_true",
+                   help="write the posed values as they are, in the asset's frame (default: "
+                        "as the asset records; an asset converted with the frame change is "
+                        "rotated into the 3DGS frame for PLY output)")
     vat = p.add_argument_group("vertex-animation texture")
     vat.add_argument("--vat", metavar="OUT.exr",
                      help="also write the anchor mesh's poses as an OpenEXR VAT")
@@ -281,7 +294,7 @@ def _posed_asset(asset, posed_meshes: dict[int, np.ndarray]):
             c = SplatCloud(r.means, r.rotations, r.scales, c.opacities, c.sh, c.color_space,
                            dict(c.extra))
         prims.append(SplatPrimitive(c, None, prim.name, prim.khr))
-    return SplatAsset(prims, asset.generator)
+    return SplatAsset(prims, asset.generator, frame=asset.frame)
 
 
 def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
@@ -315,6 +328,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     if not meshes:
         raise FormatError("has no anchored splats (convert it with gsverse-convert --mesh "
                           "first)", asset_path)
+    # the asset's frame: kept (no rotation) when it records one or --no-frame-change says so
+    frame_change = not args.no_frame_change and asset.frame == "gltf"
     animation: int | str = int(args.animation) if args.animation.isdigit() else args.animation
 
     source = None
@@ -397,7 +412,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     if outputs and not usd:
         progress.stage(f"writing {len(times)} {fmt} file(s)")
         for i, posed in enumerate(frames):
-            write(_posed_asset(asset, posed), outputs[i], protect=(asset_path,))
+            write(_posed_asset(asset, posed), outputs[i], protect=(asset_path,),
+                  frame_change=frame_change)
             summary.outputs.append(outputs[i])
             progress.update(i + 1, len(times))
     progress.close()
@@ -406,7 +422,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
 
         rate = float(args.fps) if args.fps is not None else 24.0
         poses = BakedPoses(times * rate, np.stack([f[vat_mesh_key] for f in frames]), rate)
-        write(asset, outputs[0], protect=(asset_path,), bake_poses=poses)
+        write(asset, outputs[0], protect=(asset_path,), bake_poses=poses,
+              frame_change=frame_change)
         summary.outputs.append(outputs[0])
     if args.vat:
         from ..poses import write_vat

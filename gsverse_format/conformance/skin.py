@@ -10,7 +10,8 @@ chain. :func:`sample_skin` evaluates such an asset at a time ``t`` with glTF sem
   keys clamp);
 * global transform = product of the local transforms from the scene root down;
 * joint matrix ``J_i = global(joint_i) · inverseBindMatrix_i``;
-* skinned vertex ``v' = Σ_k w_k J_{j_k} · v`` (``JOINTS_0``/``WEIGHTS_0``). As glTF prescribes,
+* skinned vertex ``v' = Σ_k w_k J_{j_k} · v`` (``JOINTS_0``/``WEIGHTS_0``, each vertex's
+  weights divided by their sum, spec §Animated anchor meshes). As glTF prescribes,
   the transform of the node that instantiates the skinned mesh is not applied.
 
 The skinned positions are in the scene's root space; the splat asset of a skinned case has its

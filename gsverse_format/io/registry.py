@@ -154,12 +154,15 @@ def rotate_asset(asset: SplatAsset, rotation: np.ndarray) -> SplatAsset:
 
 def read_asset(path: str | os.PathLike[str], *, frame_change: bool = True) -> SplatAsset:
     """Read splats from any registered format (3DGS PLY, KHR_gaussian_splatting glTF/GLB, USD)
-    into the glTF frame (in the file's own frame with ``frame_change=False``)."""
+    into the glTF frame (in the file's own frame with ``frame_change=False``, which the
+    asset's :attr:`~gsverse_format.model.SplatAsset.frame` then names)."""
     fmt = find_format(path, "read")
     assert fmt.read is not None
     asset = fmt.read(path)
     if frame_change and fmt.frame != "gltf":
         asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+    elif fmt.frame != "gltf":
+        asset.frame = fmt.frame   # kept in the file's frame: a glTF or USD output records it
     return asset
 
 
@@ -176,8 +179,9 @@ def khr_loss(props: KhrProperties, fmt: FileFormat, label: str = "the splats") -
 
 def write_asset(asset: SplatAsset, path: str | os.PathLike[str], *, frame_change: bool = True,
                 protect: Iterable[str | os.PathLike[str]] = (), **options: Any) -> None:
-    """Write ``asset`` (in the glTF frame; taken as is with ``frame_change=False``) in the
-    format of ``path``'s suffix. ``options`` go to the format's writer: ``bake_poses`` (a
+    """Write ``asset`` (in the glTF frame, or the one its ``frame`` names; taken as is with
+    ``frame_change=False``) in the format of ``path``'s suffix. glTF and USD files hold the
+    asset's frame as it is and record one that is not glTF's. ``options`` go to the format's writer: ``bake_poses`` (a
     :class:`gsverse_format.io.usd.BakedPoses`) is for USD output only. PLY output holds all
     splats of all primitives (no anchoring)."""
     fmt = find_format(path, "write")
@@ -190,6 +194,7 @@ def write_asset(asset: SplatAsset, path: str | os.PathLike[str], *, frame_change
         problem = khr_loss(prim.khr, fmt, prim_label(i, prim))
         if problem is not None:
             raise UsageError(problem, path)
-    if frame_change and fmt.frame != "gltf":
-        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf.T)
+    if frame_change and fmt.frame != "gltf" and fmt.frame != asset.frame:
+        # from the asset's frame (glTF's unless it was kept, see SplatAsset.frame) to the file's
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf.T @ FRAMES[asset.frame].to_gltf)
     fmt.write(asset, path, protect=tuple(protect), **options)

@@ -18,7 +18,9 @@ reader, the conformance suite passes its own GLB bytes.
 * Morph targets: ``POSITION' = POSITION + Σ_i w_i · target_i.POSITION`` with the weights of
   the ``weights`` channel of the node, else ``node.weights``, else ``mesh.weights``, else 0.
 * Skinning: joint matrix ``J_i = global(joint_i) · inverseBindMatrix_i``; skinned vertex
-  ``v' = Σ_k w_k · J_{j_k} · v`` over every ``JOINTS_n``/``WEIGHTS_n`` set. As glTF prescribes,
+  ``v' = Σ_k w_k · J_{j_k} · v`` over every ``JOINTS_n``/``WEIGHTS_n`` set, the weights of a
+  vertex normalized first (divided by their sum; all zero: weight 1 on its first influence),
+  as three.js does and spec/README.md §Animated anchor meshes prescribes. As glTF prescribes,
   the transform of the node that instantiates a skinned mesh is not applied. A mesh without a
   skin is placed by its node's global transform.
 """
@@ -31,6 +33,7 @@ import numpy as np
 
 from ..errors import FormatError
 from ..quaternion import to_matrix
+from ..rig import normalized_weights
 
 __all__ = ["AccessorFn", "Instance", "GltfAnimation", "slerp", "sample_channel",
            "INTERPOLATIONS"]
@@ -265,19 +268,23 @@ class GltfAnimation:
         mats = np.stack([world[j] @ ibm[k] for k, j in enumerate(joints)])
         attrs = self.doc["meshes"][inst.mesh]["primitives"][inst.primitive]["attributes"]
         homo = np.concatenate([v, np.ones((len(v), 1))], axis=1)
-        out = np.zeros((len(v), 4))
+        sets_j, sets_w = [], []
         n = 0
         while f"JOINTS_{n}" in attrs and f"WEIGHTS_{n}" in attrs:
             jn = self._floats(attrs[f"JOINTS_{n}"]).astype(np.intp)
-            wt = self._floats(attrs[f"WEIGHTS_{n}"])
             if jn.size and (jn.min() < 0 or jn.max() >= len(joints)):
                 raise FormatError(f"mesh {inst.mesh}: JOINTS_{n} refers to joint "
                                   f"{int(jn.max())} of a skin with {len(joints)} joints")
-            for k in range(jn.shape[1]):
-                out += wt[:, k:k + 1] * np.einsum("nij,nj->ni", mats[jn[:, k]], homo)
+            sets_j.append(jn)
+            sets_w.append(self._floats(attrs[f"WEIGHTS_{n}"]))
             n += 1
         if n == 0:
             raise FormatError(f"skinned mesh {inst.mesh} has no JOINTS_0/WEIGHTS_0")
+        jn = np.concatenate(sets_j, axis=1)
+        wt = normalized_weights(np.concatenate(sets_w, axis=1)).weights
+        out = np.zeros((len(v), 4))
+        for k in range(jn.shape[1]):
+            out += wt[:, k:k + 1] * np.einsum("nij,nj->ni", mats[jn[:, k]], homo)
         return out[:, :3]
 
     def vertices(self, t: float | None, instances: list[Instance] | None = None) -> np.ndarray:

@@ -24,6 +24,7 @@ from ...model import (Anchoring, GamesAnchors, KhrProperties, LocalAnchors, Spla
                       SplatCloud, SplatPrimitive, TriangleMesh)
 from ...anchors_derive import degenerate_splats, derive_local
 from ...frames import local_frames
+from ...vocabulary import recorded_frame
 from ...vocabulary import (DERIVED_KEYS, DEFORMATIONS, EXTENSION, FACE_COUNTS, FIELDS_BY_KEY,
                            FLOAT, KHR, PROFILES, SH_C0, UNSIGNED_BYTE, UNSIGNED_SHORT,
                            gltf_required_keys)
@@ -405,7 +406,10 @@ class SplatReader:
                     continue
                 primitives.append(self.splat_primitive(m, p, name))
         generator = getattr(self.document.gltf.asset, "generator", None)
-        return SplatAsset(primitives, generator if isinstance(generator, str) else None)
+        extras = (self.document.doc.get("asset") or {}).get("extras")
+        return SplatAsset(primitives, generator if isinstance(generator, str) else None,
+                          frame=recorded_frame(extras.get("gsverse")
+                                               if isinstance(extras, dict) else None))
 
 
 def read_document(document: Document) -> SplatAsset:

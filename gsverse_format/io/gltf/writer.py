@@ -44,6 +44,7 @@ from ...anchors_derive import degenerate_splats
 from ...quaternion import unit_quaternions
 from ...rig import AnchorRig
 from ...vocabulary import ANCHOR_ENCODINGS as VOCAB_ENCODINGS
+from ...vocabulary import frame_record
 from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, NODE_VISIBILITY, SH_C0, SHORT,
                            UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT)
 from .accessors import COMPONENT_DTYPES
@@ -492,7 +493,8 @@ def _gltf_document(asset: SplatAsset, *, quantize: dict | None = None,
         ([NODE_VISIBILITY] if rigs else [])
     length = b.pad()
     gltf = pygltflib.GLTF2(
-        asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}"),
+        asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}",
+                              extras=_frame_extras(asset)),
         extensionsUsed=used, scene=0,
         scenes=[pygltflib.Scene(nodes=list(range(len(nodes))) + rigged.roots)],
         nodes=nodes + rigged.nodes, meshes=meshes, skins=rigged.skins,
@@ -502,6 +504,12 @@ def _gltf_document(asset: SplatAsset, *, quantize: dict | None = None,
         bufferViews=[pygltflib.BufferView(**view) for view in b.views],
         buffers=[pygltflib.Buffer(byteLength=length)] if length else [])
     return gltf, b
+
+
+def _frame_extras(asset: SplatAsset) -> dict[str, Any] | None:
+    """``asset.extras`` recording the frame of an asset not in glTF's (``frame_record``)."""
+    record = frame_record(asset.frame)
+    return {"gsverse": record} if record is not None else None
 
 
 def _gltf_json(gltf: pygltflib.GLTF2, *, data_uri: bool) -> bytes:

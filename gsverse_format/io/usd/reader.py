@@ -19,7 +19,8 @@ from ...errors import FormatError
 from ...model import (Anchoring, DeformationLaw, GamesAnchors, LocalAnchors, SplatAsset,
                       SplatCloud, SplatPrimitive, TriangleMesh, sh_coefficient_count)
 from ...quaternion import unit_quaternions
-from ...vocabulary import DEFORMATIONS, PROFILES, USD_DEFORMATION, USD_PROFILE, AnchorField
+from ...vocabulary import (DEFORMATIONS, PROFILES, USD_DEFORMATION, USD_PROFILE, AnchorField,
+                           recorded_frame)
 from .problems import UsdPrimInfo, UsdProblem
 from .schema import (ANCHOR_API, COLOR_SPACE_API, COLOR_SPACE_ATTR, DEFAULT_COLOR_SPACE,
                      FIELDS, MESH_REL, REST_ATTRS, SH_COEFFS, SH_DEGREE, SPLAT_TYPE, USD_TYPES,
@@ -175,8 +176,10 @@ class StageReader:
                 self.warn(prim.GetPath(), f"{prim.GetTypeName() or 'ParticleField'} prim is not "
                           f"a {SPLAT_TYPE} (no KHR_gaussian_splatting equivalent): skipped",
                           Code.USD_PARTICLE_FIELD_SKIPPED)
-        asset = SplatAsset(primitives, self.generator())
-        return self.convert_units(asset)
+        asset = self.convert_units(SplatAsset(primitives, self.generator()))
+        data = self.stage.GetRootLayer().customLayerData or {}
+        asset.frame = recorded_frame(data.get("gsverse"))
+        return asset
 
     def generator(self) -> str | None:
         """The ``generator`` of the root layer's ``customLayerData``."""

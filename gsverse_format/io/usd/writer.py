@@ -18,7 +18,7 @@ from ...atomic import check_target, file_mode, output_error, temporary_folder
 from ...errors import GsverseError, UsageError
 from ...model import Collider, LocalAnchors, SplatAsset, SplatPrimitive, TriangleMesh, check_primitive
 from ...quaternion import unit_quaternions
-from ...vocabulary import USD_DEFORMATION, USD_PROFILE, allowed_fields
+from ...vocabulary import USD_DEFORMATION, USD_PROFILE, allowed_fields, frame_record
 from .poses import BakedPoses
 from .schema import (ANCHOR_API, COLOR_SPACE_API, COLOR_SPACE_ATTR, INT32_MAX, MESH_REL,
                      ROOT_PRIM, USD_SUFFIXES, USD_TYPES, pxr, pxr_errors, pxr_message,
@@ -191,7 +191,11 @@ def _build_stage(px: types.SimpleNamespace, asset: SplatAsset, poses: BakedPoses
     root = UsdGeom.Xform.Define(stage, "/" + ROOT_PRIM)
     Usd.ModelAPI(root.GetPrim()).SetKind(px.Kind.Tokens.component)
     stage.SetDefaultPrim(root.GetPrim())
-    stage.GetRootLayer().customLayerData = {"generator": f"gsverse-format {__version__}"}
+    layer_data: dict[str, Any] = {"generator": f"gsverse-format {__version__}"}
+    record = frame_record(asset.frame)
+    if record is not None:
+        layer_data["gsverse"] = record
+    stage.GetRootLayer().customLayerData = layer_data
     names = _Names(px)
     root_path = root.GetPath()
     mesh_paths: dict[int, Any] = {}

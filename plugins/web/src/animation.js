@@ -8,6 +8,7 @@
 //      anchor node's `weights` channel, else the node's `weights`, else the mesh's, else 0;
 //   2. skinned (glTF 2.0 linear blend skinning) when the anchor node has a skin:
 //      p' = Σ_j WEIGHTS_ij · G(joints[JOINTS_ij]) · IBM_j · p over every JOINTS_n/WEIGHTS_n set,
+//      each vertex's weights normalized (divided by their sum; all zero: 1 on the first one),
 //      G the global transform of the joint node at t (the anchor node's own transform is ignored);
 //   3. for a skinned mesh, brought into the splat primitive's local space: M(t)⁻¹ · p', M the
 //      global matrix at t of the node instantiating the splat mesh (the identity without one).
@@ -294,18 +295,33 @@ export class AnchorAnimation {
             sets.push({ joints, weights });
         }
         if (!sets.length) throw fail(SKIN_ATTRIBUTES, `${where} is skinned but has no JOINTS_0/WEIGHTS_0 pair`);
+        // Each vertex's weights normalized (spec/README.md §Animated anchor meshes, as three.js's
+        // SkinnedMesh.normalizeSkinWeights): divided by their sum over every set; all zero:
+        // weight 1 on the first influence (JOINTS_0 component 0).
+        const sums = new Float64Array(V);
         let count = 0;
-        for (const { weights } of sets) for (let i = 0; i < weights.length; ++i) if (weights[i] !== 0) ++count;
+        for (const { weights } of sets) {
+            for (let i = 0; i < weights.length; ++i) {
+                sums[Math.floor(i / 4)] += weights[i];
+                if (weights[i] !== 0) ++count;
+            }
+        }
+        for (let v = 0; v < V; ++v) if (!(sums[v] > 0)) ++count;
         this.influenceJoint = new Uint32Array(count);
         this.influenceWeight = new Float64Array(count);
         let e = 0;
         for (let v = 0; v < V; ++v) {
             this.offsets[v] = e;
+            if (!(sums[v] > 0)) {
+                this.influenceJoint[e] = sets[0].joints[4 * v];
+                this.influenceWeight[e++] = 1;
+                continue;
+            }
             for (const { joints, weights } of sets) {
                 for (let c = 4 * v; c < 4 * v + 4; ++c) {
                     if (weights[c] === 0) continue;
                     this.influenceJoint[e] = joints[c];
-                    this.influenceWeight[e++] = weights[c];
+                    this.influenceWeight[e++] = weights[c] / sums[v];
                 }
             }
         }
