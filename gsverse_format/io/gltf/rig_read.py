@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from ...errors import FormatError
-from ...rig import WEIGHTS_PATH, AnchorRig, RigAnimation, RigChannel, RigNode
+from ...rig import WEIGHTS_PATH, AnchorRig, RigAnimation, RigChannel, RigNode, normalized_weights
 from .accessors import dequantize
 from .document import Document
 from .reader import TRIANGLES
@@ -189,11 +189,15 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
         for k, j in enumerate(where):
             fallback.setdefault(int(j), ibm[k])
         jn, wt = _influences(attrs, floats, len(mine), pt.mesh, pt.primitive)
+        # The rest a reader draws uses the weights as readers use them (normalized, spec
+        # §Animated anchor meshes, Skin weights); the raw ones are kept for the converter to
+        # note or refuse (gsverse_format.scene.normalize_skin_weights).
+        used_wt = normalized_weights(wt).weights
         bind = joint_globals[where] @ ibm[:len(mine)]             # (J, 4, 4)
-        blend = np.einsum("nk,nkij->nij", wt, bind[jn])          # (V, 4, 4)
+        blend = np.einsum("nk,nkij->nij", used_wt, bind[jn])     # (V, 4, 4)
         placed = np.einsum("nij,nj->ni", blend[:, :3, :3], v) + blend[:, :3, 3]
         for k in range(4):
-            on = wt[:, k] > 0
+            on = used_wt[:, k] > 0
             if on.any():
                 b = bind[jn[on, k]]
                 alone = np.einsum("nij,nj->ni", b[:, :3, :3], v[on]) + b[:, :3, 3]
