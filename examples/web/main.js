@@ -577,6 +577,11 @@ const api = {
     stats,
     info,
     frames,
+    /**
+     * True when the picture shows the current state: no change waits for the next frame and no
+     * body waits for the engine to sort its current pose (the plugin's sortPending).
+     */
+    settled: () => !dirty && (!current || current.bodies.every((b) => !b.splat.sortPending)),
     /** The error shown on the page, or null. */
     error: () => ($('error').classList.contains('show') ? { text: $('error').textContent, code: $('error').dataset.code || null } : null),
 };

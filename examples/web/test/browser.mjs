@@ -60,7 +60,9 @@ export async function launch(viewport = {}) {
 /**
  * The frame once the splats are drawn and stable: the engine sorts splats in a worker and may
  * present a few frames before the first sorted draw, more so on a loaded machine; two
- * consecutive captures with the same non-empty silhouette (or `timeout` ms) end the wait. The PNG
+ * consecutive captures with the same non-empty silhouette, each taken two frames after the page
+ * reports it settled (`gsverseDemo.settled()`: no change or sort pending), or `timeout` ms, end
+ * the wait. The PNG
  * is written to `file` when given.
  * @param {any} page @param {string|null} file @param {number} [timeout]
  */
@@ -69,6 +71,13 @@ export async function stableShot(page, file, timeout = 60000) {
     /** @type {any} */
     let prev = null;
     for (;;) {
+        // a capture counts only once the page says it shows its current state (a loaded
+        // machine may present old frames while a sort or a change is still pending)
+        await page.waitForFunction(() => {
+            const demo = /** @type {any} */ (window).gsverseDemo;
+            return !demo?.settled || demo.settled();
+        }, null, { timeout: Math.max(1, deadline - Date.now()), polling: 50 }).catch(() => {});
+        await page.evaluate(() => /** @type {any} */ (window).gsverseDemo?.frames?.(2));
         const png = await page.screenshot();
         const img = decodePng(png);
         const s = silhouette(img);

@@ -70,6 +70,8 @@ export { SUPPORTED_PLAYCANVAS, PLAYCANVAS_VERSION } from './engine.js';
 
 /** How long a handed-over set of sort centres holds later ones back at most (ms). */
 const SORT_WAIT_MS = 1000;
+/** frames after a sort on which vertices set before it are marked for drawing again (_onSorted) */
+const REMARK_FRAMES = 4;
 
 /** Largest width of the data textures (every WebGL2 device supports 4096). */
 const MAX_WIDTH = 4096;
@@ -325,8 +327,29 @@ export class AnchoredSplat {
         /** a pose arrived while centres were in flight: hand its centres over after the sort */
         this._centresStale = false;
         this._scene = scene;
+        /** vertices were set since the engine's last sort: mark the work buffer dirty after it */
+        this._refreshAfterSort = false;
+        this._app = components[0]?.system?.app ?? null;
+        /** frames left on which to mark the work buffer dirty again (see _onSorted) */
+        this._remarkFrames = 0;
+        this._remark = () => {
+            if (this._remarkFrames <= 0 || !this._scene) return;
+            this._remarkFrames--;
+            for (const c of this._components) c.setParameter('gsvVertices', this.gpu.verticesTex);
+        };
+        this._app?.on('update', this._remark);
         this._onSorted = () => {
             this._centresInFlight = 0;
+            if (this._refreshAfterSort && this._app) {
+                // Observed on PlayCanvas 2.21-2.23: vertices set while the engine is applying
+                // a sort result can be left undrawn (the instance's dirty mark is consumed, the
+                // work buffer keeps the previous pose: the last pose of a paused animation
+                // stayed on screen after going back to rest, until anything else changed).
+                // Marking the instance dirty again on the few frames after the sort event
+                // draws them; the cost is at most REMARK_FRAMES work-buffer copies per sort.
+                this._refreshAfterSort = false;
+                this._remarkFrames = REMARK_FRAMES;
+            }
             if (this._centresStale) this._updateCenters(this._enabled ? this.gpu.current : null);
         };
         scene?.on('gsplat:sorted', this._onSorted);
@@ -358,6 +381,7 @@ export class AnchoredSplat {
         // re-setting the texture marks the instance dirty: the work buffer is re-copied
         // through the remap on the next frame
         for (const c of this._components) c.setParameter('gsvVertices', this.gpu.verticesTex);
+        this._refreshAfterSort = !!this._scene;
         const t1 = performance.now();
         if (this._enabled) this._updateCenters(this.gpu.current);
         const t2 = performance.now();
@@ -431,6 +455,7 @@ export class AnchoredSplat {
             for (const [name] of this.gpu.parameters()) c.deleteParameter(name);
         }
         this._scene?.off('gsplat:sorted', this._onSorted);
+        this._app?.off('update', this._remark);
         this._scene = null;
         this._updateCenters(null);
         this.gpu.destroy();
