@@ -17,6 +17,7 @@ import { join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 import { launchPage, timeScale } from '../conformance/run-browser.mjs';
+import { renderAndStretch } from './render-stretch.mjs';
 import { PLAYCANVAS_VERSION, SUPPORTED_PLAYCANVAS, inRange, parseVersion } from '../src/playcanvas/engine.js';
 
 const PKG = fileURLToPath(new URL('..', import.meta.url));
@@ -95,27 +96,6 @@ async function openPage(pkgDir) {
     });
     const version = await browser.page.evaluate(async () => (await import('playcanvas')).version);
     return { ...browser, warnings, version };
-}
-
-/**
- * The render check of test/gpu-render.test.mjs: rest pose like the engine's, stretches followed.
- * @param {import('playwright-core').Page} page
- */
-async function renderAndStretch(page) {
-    const info = await page.evaluate(() => /** @type {any} */ (window).gsvRender.load('/examples/web/capsule.glb'));
-    assert.deepEqual(info.splats.length, 1);
-    const cmp = await page.evaluate(() => /** @type {any} */ (window).gsvRender.compareToEngine());
-    assert.ok(cmp.lit > 500, `the rest pose renders (${cmp.lit} lit pixels)`);
-    assert.ok(cmp.differing <= cmp.lit / 100, `remapped rest pose = engine rest pose (${JSON.stringify(cmp)})`);
-    const rest = await page.evaluate(() => /** @type {any} */ (window).gsvRender.stretch(1, 1));
-    for (const axis of [0, 1]) {
-        const s = await page.evaluate((a) => /** @type {any} */ (window).gsvRender.stretch(a, 1.5), axis);
-        const size = (/** @type {any} */ e) => (axis === 0 ? e.x1 - e.x0 : e.y1 - e.y0) + 1;
-        const other = (/** @type {any} */ e) => (axis === 0 ? e.y1 - e.y0 : e.x1 - e.x0) + 1;
-        const ratio = size(s) / size(rest);
-        assert.ok(ratio > 1.35 && ratio < 1.65, `axis ${axis}: rendered extent grew ${ratio.toFixed(3)}x`);
-        assert.ok(Math.abs(other(s) / other(rest) - 1) < 0.1, `axis ${axis}: the other extent stays`);
-    }
 }
 
 /**
