@@ -15,13 +15,7 @@ export class FrameWatch {
         this.lastFrame = 0;
         /** @type {number[]|null} the latest extent */
         this.last = null;
-        this.frames = 0;
-        this.steps = 0;
-        this.sorts = 0;
-        this.slowFrames = 0;
-        this.maxFrameMs = 0;
-        this.min = [Infinity, Infinity, Infinity];
-        this.max = [0, 0, 0];
+        this.clear();
     }
 
     /** Start a new record. */

@@ -7,27 +7,10 @@
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
 import { RemapProbe } from '../../src/playcanvas/probe.js';
-import { describeBackend, startApp } from './engine-page.js';
+import { describeBackend, fetchBytes, startApp, toBase64 } from './engine-page.js';
 
 /** @type {pc.Application|null} */
 let app = null;
-
-/** @param {ArrayBufferView} view */
-function toBase64(view) {
-    const bytes = new Uint8Array(view.buffer, view.byteOffset, view.byteLength);
-    let s = '';
-    for (let i = 0; i < bytes.length; i += 0x8000) {
-        s += String.fromCharCode.apply(null, /** @type {any} */ (bytes.subarray(i, i + 0x8000)));
-    }
-    return btoa(s);
-}
-
-/** @param {string} url */
-async function fetchBytes(url) {
-    const response = await fetch(url);
-    if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
-    return new Uint8Array(await response.arrayBuffer());
-}
 
 /**
  * Start the application on a WebGL2 or WebGPU device; returns the backend description.

@@ -7,27 +7,13 @@
 
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
-import { describeBackend, frame, settleFrames, startApp } from './engine-page.js';
+import { describeBackend, fetchBytes, frame, settleFrames, startApp, toBase64 } from './engine-page.js';
 
 /** @type {pc.Application|null} */
 let app = null;
 /** @type {pc.Entity|null} */
 let camera = null;
 let sorts = 0;
-
-/** @param {Uint8Array} bytes */
-function toBase64(bytes) {
-    let s = '';
-    for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode.apply(null, /** @type {any} */ (bytes.subarray(i, i + 0x8000)));
-    return btoa(s);
-}
-
-/** @param {string} url */
-async function fetchBytes(url) {
-    const response = await fetch(url);
-    if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
-    return new Uint8Array(await response.arrayBuffer());
-}
 
 /**
  * Start the application (WebGL2 or WebGPU) with a camera; returns the backend description.
