@@ -107,8 +107,10 @@ def _anchored(ctx: Context, m: Any) -> bool:
     meshes = ctx.array("meshes")
     if not _index(m, len(meshes)) or not isinstance(meshes[m], dict):
         return False
-    for prim in meshes[m].get("primitives") or []:
-        khr = (prim.get("extensions") or {}).get(KHR) if isinstance(prim, dict) else None
+    prims = meshes[m].get("primitives")
+    for prim in prims if isinstance(prims, list) else []:
+        extensions = prim.get("extensions") if isinstance(prim, dict) else None
+        khr = extensions.get(KHR) if isinstance(extensions, dict) else None
         nested = khr.get("extensions") if isinstance(khr, dict) else None
         if isinstance(nested, dict) and EXTENSION in nested:
             return True

@@ -17,7 +17,7 @@ from typing import Any
 
 import pygltflib
 
-from ...errors import UsageError
+from ...errors import FormatError, UsageError
 from ...model import Collider, Ground, Physics, SplatAsset, SplatPrimitive
 from ...physics import (GROUND_NAME, PHYSICS, PHYSICS_KINDS, SHAPES, body_object, box_shape,
                         ground_object, kind_of)
@@ -158,9 +158,13 @@ def read_physics(reader: Any, primitives: list[SplatPrimitive],
 
     def collider(c: int, a: int, anchor: Any) -> Collider | None:
         if (c, a) in done:
-            return next(x for x in colliders if x.anchor is anchor)
+            return next((x for x in colliders if x.anchor is anchor), None)
         kind = _dict(_dict(reader.meshes[c].get("extras")).get("gsverse")).get("collider")
-        found = Collider(reader.triangles(c, 0), anchor, kind if isinstance(kind, str) else "hull")
+        try:
+            mesh = reader.triangles(c, 0)
+        except FormatError:  # a broken collider mesh is left out; the splats still read
+            return None
+        found = Collider(mesh, anchor, kind if isinstance(kind, str) else "hull")
         colliders.append(found)
         done.add((c, a))
         return found
@@ -179,7 +183,8 @@ def read_physics(reader: Any, primitives: list[SplatPrimitive],
         c = _triangle_mesh(reader, nodes[h]) if h is not None else None
         if kind is None or c is None:
             continue
-        collider(c, a, prim.anchoring.mesh)
+        if collider(c, a, prim.anchoring.mesh) is None:
+            continue
         motion = _dict(_dict(body).get("motion"))
         mass = motion.get("mass")
         ok = isinstance(mass, (int, float)) and not isinstance(mass, bool) and \
