@@ -287,3 +287,31 @@ def test_shipped_physics_example_is_what_the_builder_and_converter_write(tmp_pat
                                           b.anchoring.anchors.face_index, err_msg=hint)
     assert fresh.ground == shipped.ground, hint
     assert [n for n in _json(out)["nodes"]] == [n for n in _json(SHIPPED)["nodes"]], hint
+
+
+def test_usd_output_of_a_scene_with_physics_says_what_it_leaves_out(scene, tmp_path, capsys):
+    pytest.importorskip("pxr")
+    _, out, _ = scene
+    assert main([str(out), str(tmp_path / "scene.usda"), "--json"]) == 0
+    notes = json.loads(capsys.readouterr().out)["notes"]
+    assert any("physics (chair, pillow, lamp, ground) is not written" in n for n in notes), notes
+
+
+def test_a_collider_mesh_that_cannot_be_read_is_left_out(scene, tmp_path):
+    _, out, _ = scene
+    data = bytearray(out.read_bytes())
+    (length,) = struct.unpack("<I", data[12:16])
+    doc = json.loads(data[20:20 + length])
+    pillow = next(n for n in doc["nodes"] if n["name"] == "pillow collider")
+    position = doc["meshes"][pillow["mesh"]]["primitives"][0]["attributes"]["POSITION"]
+    doc["accessors"][position]["count"] = 10 ** 6  # beyond its buffer view
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    rest = bytes(data[20 + length:])
+    broken = tmp_path / "broken.glb"
+    broken.write_bytes(struct.pack("<4sII", b"glTF", 2, 20 + len(text) + len(rest))
+                       + struct.pack("<I4s", len(text), b"JSON") + text + rest)
+    asset = gv.read(broken)
+    assert {p.name: p.physics is not None for p in asset.anchored} == \
+        {"chair": True, "pillow": False, "lamp": True}
+    assert validate_file(broken).exit_status == 1  # the validator still reports the accessor
