@@ -48,8 +48,8 @@ def _shape_problem(shape: Any) -> str | None:
         value = params.get(key)
         if value is None:  # left out: the extension's default
             continue
-        values = value if key == "size" and isinstance(value, list) and len(value) == 3 \
-            else [value] if key != "size" else [None]
+        values: list[Any] = value if key == "size" and isinstance(value, list) and \
+            len(value) == 3 else [value] if key != "size" else [None]
         if not all(_number(v) and v > 0 for v in values):
             return f"{kind}.{key} {value!r:.60} is not finite and above 0 (degenerate)"
     return None
@@ -95,8 +95,8 @@ def _check_geometry(ctx: Context, geometry: Any, nodes: list, shapes: int,
         return
     meshes = ctx.array("meshes")
     m = nodes[h].get("mesh") if isinstance(nodes[h], dict) else None
-    prims = meshes[m].get("primitives") if _index(m, len(meshes)) and \
-        isinstance(meshes[m], dict) else None
+    prims = meshes[m].get("primitives") if isinstance(m, int) and _index(m, len(meshes)) \
+        and isinstance(meshes[m], dict) else None
     if not isinstance(prims, list) or not any(
             isinstance(p, dict) and p.get("mode", 4) == 4 for p in prims):
         ctx.issues.add(Code.PHYSICS_GEOMETRY_INVALID, f"node {h} holds no mesh with a "

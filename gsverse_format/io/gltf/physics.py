@@ -136,7 +136,8 @@ def _ground(doc: dict, nodes: list) -> Ground | None:
         if not (isinstance(t, list) and len(t) == 3 and
                 all(isinstance(v, (int, float)) and math.isfinite(v) for v in t)):
             continue
-        return Ground(tuple(float(v) for v in size), tuple(float(v) for v in t))
+        return Ground((float(size[0]), float(size[1]), float(size[2])),
+                      (float(t[0]), float(t[1]), float(t[2])))
     return None
 
 
@@ -187,9 +188,11 @@ def read_physics(reader: Any, primitives: list[SplatPrimitive],
             continue
         motion = _dict(_dict(body).get("motion"))
         mass = motion.get("mass")
-        ok = isinstance(mass, (int, float)) and not isinstance(mass, bool) and \
-            math.isfinite(mass) and mass > 0
-        prim.physics = Physics(kind, float(mass) if ok and kind != "static" else None)
+        weight: float | None = None
+        if isinstance(mass, (int, float)) and not isinstance(mass, bool) and \
+                math.isfinite(mass) and mass > 0 and kind != "static":
+            weight = float(mass)
+        prim.physics = Physics(kind, weight)
     for c, mesh in enumerate(reader.meshes):  # colliders marked for older readers
         marked = _dict(_dict(mesh.get("extras")).get("gsverse"))
         a = marked.get("for")

@@ -373,7 +373,7 @@ def _collider_meshes(b: BufferBuilder, asset: SplatAsset, anchor_mesh_index: dic
     no node, marked ``extras.gsverse = {"collider": kind, "for": <anchor mesh index>}``
     (spec/README.md §Colliders); and ``id(anchor mesh)`` -> the index its (first) collider
     mesh gets."""
-    out = []
+    out: list[pygltflib.Mesh] = []
     index: dict[int, int] = {}
     for collider in asset.colliders:
         m = anchor_mesh_index.get(id(collider.anchor))
