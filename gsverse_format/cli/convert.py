@@ -105,10 +105,11 @@ scenes (several --mesh):
 physics-ready anchor meshes:
   the summary says whether each anchor mesh is a closed 2-manifold ("manifold" lines, --json
   "anchor_meshes"); --watertight repairs it before binding, --collider hull adds its convex
-  hull as a collision mesh (spec/README.md, "Colliders").
+  hull as a collision mesh (spec/README.md, "Colliders of the extras convention"; --physics
+  below also references it from the object's node).
 
 physics (--physics, --mass, --ground; glTF output only):
-  gsverse-convert room.ply room.glb --mesh chair.obj --mesh pillow.obj --mesh lamp.obj \
+  gsverse-convert room.ply room.glb --mesh chair.obj --mesh pillow.obj --mesh lamp.obj \\
       --physics chair=rigid,pillow=soft,lamp=kinematic --mass chair=4 --ground
   each object with physics gets KHR_physics_rigid_bodies on its node: a convex-hull collider
   (its anchor mesh's hull, in a node outside the scene; --collider hull is implied) and a
