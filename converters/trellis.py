@@ -113,7 +113,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
         raise UsageError("TRELLIS needs the mesh of the same run: pass its GLB with --mesh "
                          "(or use --from 3dgs to reconstruct a mesh from the splats)", input_path)
     _check_layout(input_path)
-    splats = read_splat_ply(input_path)
+    splats = read_splat_ply(input_path, keep_nonfinite=options.keep_nonfinite)
     require_splats(splats, input_path)
     reach = float(np.max(np.abs(splats.means)))
     if reach > CUBE_LIMIT:

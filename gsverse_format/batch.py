@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from .atomic import WRITE_ERRNOS
+from .edit import EDIT_FLAGS, SplatEdit
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
@@ -108,6 +109,9 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
     "bake_poses": ("bake_poses", _as_str, True),
     "watertight": ("watertight", _as_bool, False),
     "collider": ("collider", _as_str, False),
+    "drop_nonfinite": ("drop_nonfinite", _as_bool, False),
+    # the edits' numbers: "x,y,z" or a JSON list, checked by SplatEdit.from_options
+    **{name: (name, lambda v: v, False) for name in EDIT_FLAGS},
 }
 
 
@@ -295,8 +299,12 @@ def read_manifest(path: str, defaults: ConvertOptions) -> list[AssetSpec]:
             values[name] = os.path.join(folder, parsed) if is_path else parsed
         if not given.get("input"):
             raise UsageError("no input", where)
-        specs.append(AssetSpec(os.path.join(folder, given["input"]),
-                               dataclasses.replace(defaults, **values),
+        options = dataclasses.replace(defaults, **values)
+        try:
+            SplatEdit.from_options(options)
+        except UsageError as exc:
+            raise UsageError(exc.cause, where) from None
+        specs.append(AssetSpec(os.path.join(folder, given["input"]), options,
                                given.get("output") or None, where))
     return specs
 
