@@ -179,10 +179,7 @@ def check_options(input_path: str, output_path: str, options: ConvertOptions) ->
     """Step 1 of :func:`gsverse_format.pipeline.convert`: refuse impossible options, missing
     input files and an unwritable output (:class:`~gsverse_format.errors.UsageError`), before
     any work."""
-    edit = SplatEdit.from_options(options)   # bad numbers: a UsageError naming the flag
-    if not edit.mesh.is_identity and not (options.mesh or options.meshes):
-        raise UsageError("--mesh-translate, --mesh-rotate and --mesh-scale move the anchor "
-                         "meshes given with --mesh: give one")
+    SplatEdit.from_options(options)   # bad numbers: a UsageError naming the flag
     if options.deformation not in ("affine", "rigid"):
         raise UsageError(f"--deformation must be affine or rigid, not {options.deformation!r}")
     if options.sh_degree is not None and options.sh_degree not in (0, 1, 2, 3):

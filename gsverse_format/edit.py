@@ -6,7 +6,9 @@ frame change into glTF, in this order:
 
 1. ``drop_nonfinite``: splats with a NaN or infinity in their mean, rotation, scales, opacity
    or SH are dropped (a zero rotation quaternion, which no rotation is, reaches here as a
-   non-finite rotation from a reader asked to keep such rows, and is dropped with them);
+   non-finite rotation from a reader asked to keep such rows, and is dropped with them); the
+   values are those decoded: a 3DGS PLY's opacity logit of −∞ is opacity 0 and its log-scale
+   of −∞ a scale of 0, both finite and kept;
 2. the similarity of the splats, ``x' = t + R (s x)``: uniform ``scale`` s > 0 first, then
    ``rotate`` R, then ``translate`` t; means, orientations (``q' = q_R ⊗ q``), linear scales
    (times s) and the SH coefficients (rotated exactly by :func:`gsverse_format.sh.rotate_sh`;
@@ -149,8 +151,12 @@ class SplatEdit:
                               r if r is not None else (0.0, 0.0, 0.0),
                               s[0] if s is not None else 1.0)
 
-        return cls(similarity(""), similarity("mesh_"), bool(options.drop_nonfinite), box,
+        edit = cls(similarity(""), similarity("mesh_"), bool(options.drop_nonfinite), box,
                    sphere, v["min_opacity"][0] if v["min_opacity"] is not None else None)
+        if not edit.mesh.is_identity and not (options.mesh or options.meshes):
+            raise UsageError("--mesh-translate, --mesh-rotate and --mesh-scale move the anchor "
+                             "meshes given with --mesh: give one")
+        return edit
 
     @property
     def is_identity(self) -> bool:
