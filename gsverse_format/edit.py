@@ -5,8 +5,8 @@ shows: the 3DGS +Y-down frame of a PLY, glTF's +Y-up frame of a GLB), before the
 frame change into glTF, in this order:
 
 1. ``drop_nonfinite``: splats with a NaN or infinity in their mean, rotation, scales, opacity
-   or SH are dropped (a zero rotation quaternion, which no rotation is, reaches here as a
-   non-finite rotation from a reader asked to keep such rows, and is dropped with them); the
+   or SH, or a zero rotation quaternion (which no rotation is: the readers refuse it, and one
+   asked to keep such rows passes it on as a NaN rotation), are dropped; the
    values are those decoded: a 3DGS PLY's opacity logit of −∞ is opacity 0 and its log-scale
    of −∞ a scale of 0, both finite and kept;
 2. the similarity of the splats, ``x' = t + R (s x)``: uniform ``scale`` s > 0 first, then
@@ -228,9 +228,10 @@ def transform_mesh(mesh: TriangleMesh, edit: Similarity) -> TriangleMesh:
 
 
 def nonfinite_rows(cloud: SplatCloud) -> np.ndarray:
-    """Boolean (N,): splats with a NaN or infinity in mean, rotation, scales, opacity or SH."""
+    """Boolean (N,): splats with a NaN or infinity in mean, rotation, scales, opacity or SH,
+    or a zero rotation quaternion (which no rotation is, as the readers hold)."""
     n = len(cloud)
-    bad = ~np.isfinite(cloud.opacities)
+    bad = ~np.isfinite(cloud.opacities) | ~np.any(cloud.rotations != 0, axis=1)
     for values in (cloud.means, cloud.rotations, cloud.scales):
         bad |= ~np.isfinite(values).all(axis=1)
     bad |= ~np.isfinite(cloud.sh.reshape(n, -1)).all(axis=1)

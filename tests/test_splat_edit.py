@@ -13,8 +13,8 @@ from scipy.spatial.transform import Rotation
 
 from gsverse_format import read
 from gsverse_format.cli.convert import main
-from gsverse_format.edit import (Similarity, SplatEdit, euler_matrix, transform_mesh,
-                                 transform_splats)
+from gsverse_format.edit import (Similarity, SplatEdit, euler_matrix, nonfinite_rows,
+                                 transform_mesh, transform_splats)
 from gsverse_format.errors import UsageError
 from gsverse_format.io.ply import write_splat_ply
 from gsverse_format.model import TriangleMesh
@@ -409,3 +409,46 @@ def test_khr_glb_and_web_format_inputs(ply, tmp_path, capsys):
     assert code == 0 and summary["splats"] + summary["edits"]["cropped"] == len(cloud)
     assert np.all(np.linalg.norm(read(tmp_path / "spz.glb").primitives[0].splats.means, axis=1)
                   <= 1 + 1e-6)
+
+
+def test_nonfinite_rows_flags_zero_quaternions_and_each_array():
+    cloud = random_splats(8, sh_degree=1)
+    cloud.rotations[1] = 0
+    cloud.means[2, 0] = np.inf
+    cloud.sh[4, 3, 2] = np.nan
+    cloud.opacities[6] = np.nan
+    assert np.flatnonzero(nonfinite_rows(cloud)).tolist() == [1, 2, 4, 6]
+
+
+def test_mesh_edits_move_a_rigged_mesh_with_its_skin(tmp_path, capsys):
+    """A skinned --mesh moved by --mesh-*: the posed anchor mesh is the original pose moved
+    by the same similarity (its skin, inverse bind matrices and animation follow)."""
+    import gsverse_format as gv
+    from gsverse_format.cli.pose import main as pose_main
+    from gsverse_format.model import SplatAsset, SplatPrimitive
+
+    from test_skin_weights import _character, _skinned
+
+    char = tmp_path / "character.glb"
+    rest, faces, weights = _character(char)
+    r = Rotation.from_euler("y", 90, degrees=True).as_matrix()
+
+    def move(v):
+        return 2.0 * np.asarray(v, np.float64) @ r.T + [1.0, 0.5, -0.25]
+
+    cloud = surface_splats(TriangleMesh(move(rest), faces), 300, 7, offset=0.0)
+    splats = tmp_path / "splats.glb"   # glTF frame: the edits act there
+    gv.write(SplatAsset([SplatPrimitive(cloud, None, "body")]), splats)
+    out = tmp_path / "anchored.glb"
+    code, _, _ = _run(capsys, splats, out, "--mesh", char, "--mesh-scale", "2",
+                      "--mesh-rotate", "0,90,0", "--mesh-translate=1,0.5,-0.25", "-q")
+    assert code == 0
+    anchoring = gv.read(out).anchored[0].anchoring
+    np.testing.assert_allclose(anchoring.mesh.vertices, move(rest), atol=1e-5)
+    posed = tmp_path / "posed.glb"
+    assert pose_main([str(out), str(posed), "--times", "1", "-q"]) == 0
+    got = gv.read(posed).primitives[0].splats.means.astype(np.float64)
+    want = gv.remap(anchoring, move(_skinned(rest, weights, 1.0))).means
+    np.testing.assert_allclose(got, want, atol=1e-4)
+    # the unmoved pose would differ: the comparison tells them apart
+    assert np.abs(gv.remap(anchoring, move(rest)).means - want).max() > 0.1
