@@ -124,8 +124,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
             if options.frame_change and in_format.frame != "gltf":
                 asset = rotate_asset(asset, FRAMES[in_format.frame].to_gltf)
         for i, prim in enumerate(asset.primitives):
-            _require_valid_splats(prim.splats, input_path, prim_label(i, prim),
-                                  in_format.name == _KEEP_NONFINITE_FORMAT)
+            _require_valid_splats(prim.splats, input_path, prim_label(i, prim))
         from .converters.khr import require_valid_primitives
         require_valid_primitives(asset, input_path)  # anchors too: the input's problem
         _require_writable_khr([(prim_label(i, p), p.khr) for i, p in enumerate(asset.primitives)],
@@ -217,7 +216,7 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     require_splats(result.splats, path, f"the {source} input holds none")
     if edit is not None and not edit.is_identity:
         result = _edit_source(result, edit, summary, path)
-    _require_valid_splats(result.splats, path, hint=True)
+    _require_valid_splats(result.splats, path)
     if frame_change:
         result = to_gltf(result)
     if result.mesh is None:
@@ -226,27 +225,27 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     return result
 
 
-def _require_valid_splats(splats: SplatCloud, input_path: str, label: str = "",
-                          hint: bool = False) -> None:
+def _require_valid_splats(splats: SplatCloud, input_path: str, label: str = "") -> None:
     """Refuse input splats that are not valid ``KHR_gaussian_splatting`` data (non-finite
     values, negative scales, opacities outside [0, 1], zero rotation quaternions, as the PLY
     reader does) as a :class:`FormatError` naming the input: checked when they are read, so
-    that the problem is the input's, not the output's. ``hint``: the message says that
-    ``--drop-nonfinite`` drops non-finite splats (where the input's reader lets it)."""
+    that the problem is the input's, not the output's. Checked after the edits: non-finite
+    values and zero quaternions that reach here are what ``--drop-nonfinite`` drops, and the
+    message says so."""
     problem = splat_problem(splats)
     zero = int(np.count_nonzero(~np.any(splats.rotations != 0, axis=1)))
     if problem is None and zero:
         problem = (f"zero rotation quaternions in {zero} of {len(splats)} splats (rotations "
                    f"are unit quaternions)")
-        problem += _DROP_HINT if hint else ""
-    elif problem is not None and problem.startswith("non-finite") and hint:
+        problem += _DROP_HINT
+    elif problem is not None and problem.startswith("non-finite"):
         problem += _DROP_HINT
     if problem is not None:
         raise FormatError(f"{label + ': ' if label else ''}{problem}", input_path)
 
 
-def _edited(cloud: SplatCloud, edit: SplatEdit, summary: ConvertSummary | None,
-            input_path: str) -> tuple[SplatCloud, np.ndarray | None]:
+def _edited(cloud: SplatCloud, edit: SplatEdit,
+            summary: ConvertSummary | None) -> tuple[SplatCloud, np.ndarray | None]:
     """:func:`gsverse_format.edit.edit_splats`, counted into ``summary.edits``."""
     counts = EditCounts(**(summary.edits if summary is not None and summary.edits else {}))
     cloud, keep = edit_splats(cloud, edit, counts)
@@ -268,7 +267,7 @@ def _edit_source(result: SourceResult, edit: SplatEdit, summary: ConvertSummary 
     """A loaded source edited in its own frame (:mod:`gsverse_format.edit`): splats, mesh,
     and the source's exact anchors, which follow the splats kept; moving splats or mesh
     replaces them by nearest-triangle binding."""
-    splats, keep = _edited(result.splats, edit, summary, input_path)
+    splats, keep = _edited(result.splats, edit, summary)
     if not len(splats):
         raise _no_splats_left(summary, input_path)
     mesh = transform_mesh(result.mesh, edit.mesh) if result.mesh is not None else None
@@ -297,7 +296,7 @@ def _edit_asset(asset: SplatAsset, edit: SplatEdit, options: ConvertOptions,
             raise UsageError("--translate, --rotate and --scale would move anchored splats "
                              "off their anchors: add --plain (the anchoring is not written), "
                              "or convert the splats' source with --mesh", input_path)
-        splats, keep = _edited(prim.splats, edit, summary, input_path)
+        splats, keep = _edited(prim.splats, edit, summary)
         if not len(splats):
             continue
         if anchoring is not None and keep is not None:
