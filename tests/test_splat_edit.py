@@ -67,6 +67,7 @@ def test_transform_splats_matches_the_similarity_of_each_gaussian():
     assert np.allclose(out.means, means, rtol=0, atol=F32)
     expected = 2.5 ** 2 * r @ _covariances(cloud.rotations, cloud.scales) @ r.T
     got = _covariances(out.rotations, out.scales)
+    # float32 quaternions and scales: a few float32 steps (6e-8) relative to the largest entry
     assert np.max(np.abs(got - expected) / np.abs(expected).max(axis=(1, 2))[:, None, None]) \
         < 1e-5
     assert np.array_equal(out.opacities, cloud.opacities)
@@ -74,7 +75,7 @@ def test_transform_splats_matches_the_similarity_of_each_gaussian():
     dirs = Rotation.random(50, random_state=1).apply([0.0, 0.0, 1.0])
     before = np.einsum("dk,nkc->ndc", sh_basis(dirs @ r, 3), cloud.sh.astype(np.float64))
     after = np.einsum("dk,nkc->ndc", sh_basis(dirs, 3), out.sh.astype(np.float64))
-    assert np.allclose(after, before, atol=1e-5)
+    assert np.allclose(after, before, atol=1e-5)   # float32 coefficients (|sh| < 2), 16 terms
 
 
 def test_transform_mesh_and_identity():
@@ -255,6 +256,7 @@ def test_moving_splats_and_mesh_together_with_keep_order(small_mesh, tmp_path, c
     (prim,) = read(out).anchored
     assert np.allclose(prim.anchoring.mesh.vertices,
                        _to_gltf(mesh.vertices.astype(np.float64) @ r.T + [1, 2, 3]), atol=F32)
+    # the stored rest pose is remapped from float32 anchors: 1e-4 of a mesh of diagonal ~4
     assert np.allclose(prim.splats.means,
                        _to_gltf(cloud.means.astype(np.float64) @ r.T + [1, 2, 3]), atol=1e-4)
 
@@ -452,3 +454,19 @@ def test_mesh_edits_move_a_rigged_mesh_with_its_skin(tmp_path, capsys):
     np.testing.assert_allclose(got, want, atol=1e-4)
     # the unmoved pose would differ: the comparison tells them apart
     assert np.abs(gv.remap(anchoring, move(rest)).means - want).max() > 0.1
+
+
+def test_trellis_drops_nonfinite_splats(tmp_path):
+    from gsverse_format.errors import NonFiniteError
+    from gsverse_format.pipeline import convert
+
+    from test_converters_trellis_reconstruct import _write_trellis_run
+
+    ply, glb, _ = _write_trellis_run(tmp_path, n=1500)
+    _poison(ply, [0, 700, 1499], "scale_2", np.nan)
+    with pytest.raises(NonFiniteError, match="3 NaN or Inf.*--drop-nonfinite"):
+        convert(ply, tmp_path / "x.glb", ConvertOptions(mesh=str(glb)))
+    summary = convert(ply, tmp_path / "out.glb", ConvertOptions(mesh=str(glb),
+                                                               drop_nonfinite=True))
+    assert summary.source == "trellis" and summary.anchored == 1497
+    assert summary.edits == {"nonfinite": 3, "cropped": 0, "below_opacity": 0}
