@@ -110,6 +110,7 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
     "watertight": ("watertight", _as_bool, False),
     "collider": ("collider", _as_str, False),
     "drop_nonfinite": ("drop_nonfinite", _as_bool, False),
+    "edit_frame": ("edit_frame", _as_str, False),
     # the edits' numbers: "x,y,z" or a JSON list, checked by SplatEdit.from_options
     **{name: (name, lambda v: v, False) for name in EDIT_FLAGS},
 }

@@ -56,6 +56,8 @@ class ConvertOptions:
     ``drop_nonfinite`` drops splats with NaN or infinite values instead of refusing the file;
     ``crop_box`` (xmin, ymin, zmin, xmax, ymax, zmax) and ``crop_sphere`` (x, y, z, r) keep the
     splats whose means lie inside, after the moves; ``min_opacity`` drops splats below it.
+    ``edit_frame`` ``"output"`` makes the edits in the output's frame instead (after the
+    frame change, as splat-transform does).
     """
 
     mesh: str | None = None
@@ -90,6 +92,7 @@ class ConvertOptions:
     crop_box: str | tuple[float, ...] | None = None
     crop_sphere: str | tuple[float, ...] | None = None
     min_opacity: str | float | None = None
+    edit_frame: str = "input"
 
     def __post_init__(self) -> None:  # file options given as path-like objects, kept as str
         self.mesh, self.pt_path, self.bake_poses = (

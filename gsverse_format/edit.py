@@ -1,8 +1,15 @@
 """Edits ``gsverse-convert`` makes to the splats and anchor meshes it reads, before binding.
 
-Every edit acts in the **input file's frame** (the coordinates the tool that made the file
-shows: the 3DGS +Y-down frame of a PLY, glTF's +Y-up frame of a GLB), before the pipeline's
-frame change into glTF, in this order:
+Every edit acts in the **input file's frame** (the coordinates the file holds: the 3DGS
++Y-down frame of a PLY, glTF's +Y-up frame of a GLB), before the pipeline's frame change into
+glTF, or with ``frame="output"`` in the **output's frame**, after it (glTF's, unless the
+conversion keeps the input's frame). The output frame is the one splat-transform's actions
+act in (it turns a PLY 180° about Z on reading, as this package does): there its numbers
+mean the same, while in a PLY's own frame its ``-t x,y,z`` is ``translate (-x, -y, z)`` and
+its ``-r a,b,c`` is ``rotate (-a, -b, c)`` (the 180° turn ``F`` about Z conjugates
+``Rx(a)`` into ``Rx(-a)``, ``Ry(b)`` into ``Ry(-b)`` and keeps ``Rz(c)``:
+``F R(a, b, c) F = R(-a, -b, c)``). The steps, in this order (step 1 involves no frame and
+runs before the frame change in both cases; :meth:`SplatEdit.split`):
 
 1. ``drop_nonfinite``: splats with a NaN or infinity in their mean, rotation, scales, opacity
    or SH, or a zero rotation quaternion (which no rotation is: the readers refuse it, and one
@@ -32,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -122,6 +129,8 @@ class SplatEdit:
     crop_box: tuple[float, ...] | None = None
     crop_sphere: tuple[float, ...] | None = None
     min_opacity: float | None = None
+    #: "input": the edits act in the input file's frame; "output": in the output's
+    frame: str = "input"
 
     @classmethod
     def from_options(cls, options: Any) -> "SplatEdit":
@@ -151,8 +160,11 @@ class SplatEdit:
                               r if r is not None else (0.0, 0.0, 0.0),
                               s[0] if s is not None else 1.0)
 
+        if options.edit_frame not in ("input", "output"):
+            raise UsageError(f"--edit-frame must be input or output, not {options.edit_frame!r}")
         edit = cls(similarity(""), similarity("mesh_"), bool(options.drop_nonfinite), box,
-                   sphere, v["min_opacity"][0] if v["min_opacity"] is not None else None)
+                   sphere, v["min_opacity"][0] if v["min_opacity"] is not None else None,
+                   options.edit_frame)
         if not edit.mesh.is_identity and not (options.mesh or options.meshes):
             raise UsageError("--mesh-translate, --mesh-rotate and --mesh-scale move the anchor "
                              "meshes given with --mesh: give one")
@@ -161,8 +173,17 @@ class SplatEdit:
     @property
     def is_identity(self) -> bool:
         return all(getattr(self, f.name) in (None, False) for f in fields(self)
-                   if f.name not in ("splats", "mesh")) \
+                   if f.name not in ("splats", "mesh", "frame")) \
             and self.splats.is_identity and self.mesh.is_identity
+
+    def split(self) -> tuple["SplatEdit", "SplatEdit | None"]:
+        """(what acts before the frame change, what acts after it): all of it before in the
+        input frame; in the output frame only the dropping of non-finite splats (no frame
+        involved) before, the rest after."""
+        if self.frame == "input":
+            return self, None
+        return (SplatEdit(drop_nonfinite=self.drop_nonfinite),
+                replace(self, drop_nonfinite=False))
 
     @property
     def filters(self) -> bool:

@@ -121,7 +121,7 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                               input_path)
         if not edit.is_identity:
             asset = _edit_asset(asset, edit, options, summary, input_path)
-            if options.frame_change and in_format.frame != "gltf":
+            if edit.frame == "input" and options.frame_change and in_format.frame != "gltf":
                 asset = rotate_asset(asset, FRAMES[in_format.frame].to_gltf)
         for i, prim in enumerate(asset.primitives):
             _require_valid_splats(prim.splats, input_path, prim_label(i, prim))
@@ -157,11 +157,15 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     if not edit.is_identity:
         summary.edits = vars(EditCounts())
     if options.meshes:
+        before, after = edit.split()
         result = load_source(source, input_path, options.mesh, src_options, frame_change=False,
-                             edit=edit, summary=summary)
+                             edit=before, summary=summary)
         more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change,
-                                 lambda m: transform_mesh(m, edit.mesh))
+                                 lambda m: transform_mesh(m, before.mesh))
         result = to_gltf(result) if options.frame_change else result
+        if after is not None and not after.is_identity:   # in the output's frame
+            result = _edit_source(result, after, summary, input_path)
+            more = [transform_mesh(m, after.mesh) for m in more]
         read = list(zip([result.mesh, *more], options.meshes))
     else:
         result = load_source(source, input_path, options.mesh, src_options,
@@ -198,7 +202,8 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
                 progress: Progress | None = None, edit: SplatEdit | None = None,
                 summary: ConvertSummary | None = None) -> SourceResult:
     """Load ``source``'s output (steps 3–5 of :func:`convert`): the loader's result edited
-    by ``edit`` (in the source's frame; what it dropped is counted in ``summary.edits``),
+    by ``edit`` (in the source's frame, or in the glTF frame after the rotation for
+    ``edit.frame == "output"``; what it dropped is counted in ``summary.edits``),
     rotated into the glTF frame (unless ``frame_change`` is off), with an anchor mesh of about
     ``reconstruct_faces`` faces reconstructed from the splats when the source has none.
     (TRELLIS's PLY-to-GLB frame is ``options.trellis_frame``; :func:`convert` sets it to
@@ -214,11 +219,14 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     except NonFiniteError as exc:
         raise type(exc)(exc.cause + (_DROP_HINT if hint else ""), exc.path) from None
     require_splats(result.splats, path, f"the {source} input holds none")
-    if edit is not None and not edit.is_identity:
-        result = _edit_source(result, edit, summary, path)
+    before, after = edit.split() if edit is not None else (None, None)
+    if before is not None and not before.is_identity:
+        result = _edit_source(result, before, summary, path)
     _require_valid_splats(result.splats, path)
     if frame_change:
         result = to_gltf(result)
+    if after is not None and not after.is_identity:
+        result = _edit_source(result, after, summary, path)
     if result.mesh is None:
         result = reconstruct_mesh(result, reconstruct_faces, path,
                                   stage=progress.stage if progress is not None else None)
@@ -346,7 +354,7 @@ def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
         warnings.simplefilter("always", UsdReadWarning)
         try:
             asset = read_input(input_path, frame_change=options.frame_change
-                               and edit.is_identity,
+                               and (edit.is_identity or edit.frame == "output"),
                                keep_nonfinite=edit.drop_nonfinite and keeps_nonfinite)
         except NonFiniteError as exc:
             raise type(exc)(exc.cause + (_DROP_HINT if keeps_nonfinite else ""),

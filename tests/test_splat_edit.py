@@ -244,24 +244,30 @@ def test_mesh_scale_removes_the_fit_warning(small_mesh, tmp_path, capsys):
     assert np.allclose(prim.anchoring.mesh.vertices, _to_gltf(mesh.vertices), atol=F32)
 
 
-def test_moving_splats_and_mesh_together_with_keep_order(small_mesh, tmp_path, capsys):
+@pytest.mark.parametrize("frame", ["input", "output"])
+def test_moving_splats_and_mesh_together_with_keep_order(small_mesh, tmp_path, capsys, frame):
     path, mesh_path, mesh, cloud = small_mesh
     out = tmp_path / "both.glb"
     move = ("--rotate", "20,-30,40", "--translate", "1,2,3")
     code, text, err = _run(capsys, path, out, "--mesh", mesh_path, "--mesh-scale", "0.01",
-                           "--keep-order", "-q", *move, *(f"--mesh-{a[2:]}" if a.startswith("--")
-                                                          else a for a in move))
+                           "--keep-order", "-q", "--edit-frame", frame, *move,
+                           *(f"--mesh-{a[2:]}" if a.startswith("--") else a for a in move))
     assert code == 0 and err == ""
     r = Rotation.from_euler("xyz", (20, -30, 40), degrees=True).as_matrix()
+
+    def moved(points):
+        points = np.asarray(points, np.float64)
+        return _to_gltf(points @ r.T + [1, 2, 3]) if frame == "input" \
+            else _to_gltf(points) @ r.T + [1, 2, 3]
+
     (prim,) = read(out).anchored
-    assert np.allclose(prim.anchoring.mesh.vertices,
-                       _to_gltf(mesh.vertices.astype(np.float64) @ r.T + [1, 2, 3]), atol=F32)
+    assert np.allclose(prim.anchoring.mesh.vertices, moved(mesh.vertices), atol=F32)
     # the stored rest pose is remapped from float32 anchors: 1e-4 of a mesh of diagonal ~4
-    assert np.allclose(prim.splats.means,
-                       _to_gltf(cloud.means.astype(np.float64) @ r.T + [1, 2, 3]), atol=1e-4)
+    assert np.allclose(prim.splats.means, moved(cloud.means), atol=1e-4)
 
 
-def test_mesh_edits_move_every_mesh_of_a_scene(tmp_path, capsys):
+@pytest.mark.parametrize("frame", ["input", "output"])
+def test_mesh_edits_move_every_mesh_of_a_scene(tmp_path, capsys, frame):
     a, b = bumpy_sphere(1), bumpy_sphere(1, seed=2)
     b = TriangleMesh(b.vertices + np.float32([4, 0, 0]), b.faces)
     paths = []
@@ -272,11 +278,14 @@ def test_mesh_edits_move_every_mesh_of_a_scene(tmp_path, capsys):
     write_splat_ply(cloud, tmp_path / "s.ply")
     out = tmp_path / "scene.glb"
     code, _, _ = _run(capsys, tmp_path / "s.ply", out, "--mesh", paths[0], "--mesh", paths[1],
-                      "--mesh-scale", "10", "-q")
+                      "--mesh-scale", "10", "--mesh-translate", "0.5,1,0", "--edit-frame", frame,
+                      "-q")
     assert code == 0
     meshes = [p.anchoring.mesh for p in read(out).anchored]
     for got, want in zip(meshes, (a, b)):
-        assert np.allclose(got.vertices, _to_gltf(want.vertices), atol=F32)
+        moved = _to_gltf(want.vertices.astype(np.float64) + [0.5, 1, 0]) if frame == "input" \
+            else _to_gltf(want.vertices) + [0.5, 1, 0]
+        assert np.allclose(got.vertices, moved, atol=F32)
 
 
 @pytest.mark.parametrize("args, needle", [
@@ -470,3 +479,32 @@ def test_trellis_drops_nonfinite_splats(tmp_path):
                                                                drop_nonfinite=True))
     assert summary.source == "trellis" and summary.anchored == 1497
     assert summary.edits == {"nonfinite": 3, "cropped": 0, "below_opacity": 0}
+
+
+def test_output_frame_matches_splat_transform(tmp_path, capsys):
+    """splat-transform (the reference; skipped without it) acts in the frame it reads a PLY
+    into, turned 180° about Z: --edit-frame output gives its numbers; in the PLY's own frame
+    the same edit is written with x and y negated."""
+    from gsverse_format.io.ply import read_splat_ply
+    from gsverse_format.quaternion import to_matrix
+
+    from test_splat_formats import splat_transform
+
+    cloud = random_splats(300, seed=3, sh_degree=3)
+    write_splat_ply(cloud, tmp_path / "in.ply")
+    splat_transform(tmp_path / "in.ply", "-s", "2", "-r", "10,20,30", "-t", "1,2,3",
+                    "-B", "-2,-1,-3,3,4,5", tmp_path / "theirs.ply")
+    theirs = read_splat_ply(tmp_path / "theirs.ply")
+    assert 0 < len(theirs) < len(cloud)
+    runs = {"output": ("--edit-frame", "output", "--rotate", "10,20,30", "--translate", "1,2,3",
+                       "--crop-box=-2,-1,-3,3,4,5"),
+            "input": ("--rotate=-10,-20,30", "--translate=-1,-2,3", "--crop-box=-3,-4,-3,2,1,5")}
+    for frame, args in runs.items():
+        out = tmp_path / f"{frame}.ply"
+        assert _run(capsys, tmp_path / "in.ply", out, "--scale", "2", "-q", *args)[0] == 0
+        ours = read_splat_ply(out)
+        assert len(ours) == len(theirs), frame
+        assert np.allclose(ours.means, theirs.means, atol=F32), frame
+        assert np.allclose(ours.scales, theirs.scales, rtol=1e-6), frame
+        assert np.allclose(to_matrix(ours.rotations), to_matrix(theirs.rotations), atol=1e-6)
+        assert np.allclose(ours.sh, theirs.sh, atol=1e-5), frame

@@ -11,12 +11,15 @@ from ..errors import UsageError
 __all__ = ["EDIT_OPTIONS", "EDIT_EPILOG", "add_edit_flags"]
 
 #: The ``ConvertOptions`` fields the flags fill (``args.<field>``).
-EDIT_OPTIONS = (*EDIT_FLAGS, "drop_nonfinite")
+EDIT_OPTIONS = (*EDIT_FLAGS, "drop_nonfinite", "edit_frame")
 
 EDIT_EPILOG = """\
 editing splats while converting:
-  after reading and before binding, in the input file's frame (the coordinates the tool that
-  made it shows: a 3DGS PLY's +Y-down frame, a GLB's +Y-up one), before the frame change:
+  after reading and before binding, in the input file's frame (the coordinates it holds: a
+  3DGS PLY's +Y-down frame, a GLB's +Y-up one), before the frame change; with --edit-frame
+  output in the output's frame, after it (glTF's +Y up; the frame splat-transform's actions
+  and the mesh-fit warning's numbers use: on a 3DGS PLY its -t X,Y,Z and -r A,B,C are
+  --translate=-X,-Y,Z and --rotate=-A,-B,C in the input frame). In order:
   --drop-nonfinite, then --scale, --rotate, --translate (in that order, whatever the order
   of the flags; --mesh-scale, --mesh-rotate, --mesh-translate the same for every --mesh),
   then --crop-box / --crop-sphere (on the moved means), then --min-opacity. --rotate X,Y,Z
@@ -62,6 +65,9 @@ def add_edit_flags(p: argparse.ArgumentParser) -> None:
     g.add_argument("--mesh-scale", type=_one("--mesh-scale"), metavar="S",
                    help="scale every --mesh uniformly by S > 0 (e.g. 100 for a mesh in metres "
                         "beside splats in centimetres)")
+    g.add_argument("--edit-frame", choices=("input", "output"), default="input",
+                   help="the frame the edits act in: the input file's (default; a 3DGS PLY's "
+                        "+Y down) or the output's (glTF's +Y up, as in splat-transform)")
     g.add_argument("--drop-nonfinite", action="store_true",
                    help="drop splats with NaN or infinite values (or a zero rotation "
                         "quaternion) instead of refusing the file (3DGS and TRELLIS PLY "
