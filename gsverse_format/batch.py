@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from .atomic import WRITE_ERRNOS
-from .edit import EDIT_FLAGS, SplatEdit
+from .edit import EDIT_FLAGS
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
@@ -300,12 +300,8 @@ def read_manifest(path: str, defaults: ConvertOptions) -> list[AssetSpec]:
             values[name] = os.path.join(folder, parsed) if is_path else parsed
         if not given.get("input"):
             raise UsageError("no input", where)
-        options = dataclasses.replace(defaults, **values)
-        try:
-            SplatEdit.from_options(options)
-        except UsageError as exc:
-            raise UsageError(exc.cause, where) from None
-        specs.append(AssetSpec(os.path.join(folder, given["input"]), options,
+        specs.append(AssetSpec(os.path.join(folder, given["input"]),
+                               dataclasses.replace(defaults, **values),
                                given.get("output") or None, where))
     return specs
 

@@ -133,9 +133,10 @@ class SplatEdit:
     frame: str = "input"
 
     @classmethod
-    def from_options(cls, options: Any) -> "SplatEdit":
+    def from_options(cls, options: Any, *, require_mesh: bool = True) -> "SplatEdit":
         """The edits ``options`` (a ``ConvertOptions``) ask for, checked: a
-        :class:`UsageError` naming the flag for bad values."""
+        :class:`UsageError` naming the flag for bad values, and for mesh edits without a
+        mesh unless not ``require_mesh`` (a batch's assets may each name theirs)."""
         v: dict[str, Any] = {}
         for name, (flag, count) in EDIT_FLAGS.items():
             value = getattr(options, name)
@@ -165,7 +166,7 @@ class SplatEdit:
         edit = cls(similarity(""), similarity("mesh_"), bool(options.drop_nonfinite), box,
                    sphere, v["min_opacity"][0] if v["min_opacity"] is not None else None,
                    options.edit_frame)
-        if not edit.mesh.is_identity and not (options.mesh or options.meshes):
+        if require_mesh and not edit.mesh.is_identity and not (options.mesh or options.meshes):
             raise UsageError("--mesh-translate, --mesh-rotate and --mesh-scale move the anchor "
                              "meshes given with --mesh: give one")
         return edit

@@ -508,3 +508,17 @@ def test_output_frame_matches_splat_transform(tmp_path, capsys):
         assert np.allclose(ours.scales, theirs.scales, rtol=1e-6), frame
         assert np.allclose(to_matrix(ours.rotations), to_matrix(theirs.rotations), atol=1e-6)
         assert np.allclose(ours.sh, theirs.sh, atol=1e-5), frame
+
+
+def test_batch_mesh_edits_need_each_asset_mesh(small_mesh, tmp_path, capsys):
+    path, mesh_path, _, _ = small_mesh
+    manifest = tmp_path / "m.csv"
+    manifest.write_text(f"input,mesh,output\n{path.name},{mesh_path.name},a.glb\n"
+                        f"{path.name},,b.glb\n")
+    code, _, err = _run(capsys, manifest, "-o", tmp_path / "out", "--mesh-scale", "0.01")
+    assert code == 2 and "m.csv:3" in err and "give one" in err
+    assert not (tmp_path / "out" / "a.glb").exists()
+    manifest.write_text(f"input,mesh,output\n{path.name},{mesh_path.name},a.glb\n")
+    code, text, err = _run(capsys, manifest, "-o", tmp_path / "out", "--mesh-scale", "0.01",
+                           "--json")
+    assert code == 0 and json.loads(text)["ok"] == 1 and "warning" not in err

@@ -382,6 +382,11 @@ def _batch(args: argparse.Namespace, progress: Progress) -> int:
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs is for local processes; a Dask cluster sets its own workers")
     specs = collect(args.paths, _options(args))
+    for spec in specs:   # every asset's edits (a manifest's values too) before any converts
+        try:
+            SplatEdit.from_options(spec.options)
+        except UsageError as exc:
+            raise UsageError(exc.cause, spec.origin) from None
     todo, skipped = plan(specs, args.output_dir, args.to or "glb", overwrite=args.overwrite,
                          skip_existing=args.skip_existing)
     report = run_batch(todo, args.output_dir, jobs=args.jobs, scheduler=args.scheduler,
@@ -406,7 +411,8 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
 
     def work() -> int:
-        SplatEdit.from_options(_options(args))   # bad edit values: exit 2 before any reading
+        # bad edit values: exit 2 before any reading (a batch's assets: in _batch)
+        SplatEdit.from_options(_options(args), require_mesh=args.output_dir is None)
         if args.output_dir is not None:
             return _batch(args, progress)
         summary, out = _convert_single(args, parser, progress)
