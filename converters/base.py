@@ -36,11 +36,15 @@ class SourceOptions:
       (TRELLIS's export rotation since 2024-12-18), ``"legacy"`` (PLYs saved before it,
       ``--legacy-trellis-frame``) or ``"none"`` (already in the GLB's frame,
       ``--no-frame-change``).
+    * ``keep_nonfinite`` — keep splats with non-finite values (``--drop-nonfinite``: the
+      pipeline drops them) where the loader reads them row by row (3DGS, TRELLIS); other
+      loaders refuse them.
     """
 
     pt_path: str | None = None
     k: int | None = None
     trellis_frame: TrellisFrame = "current"
+    keep_nonfinite: bool = False
 
 
 @dataclass

@@ -17,7 +17,7 @@ __all__ = ["load", "detect"]
 
 def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> SourceResult:
     """The PLY's splats and the mesh (if any), both in the 3DGS frame."""
-    splats = read_splat_ply(input_path)
+    splats = read_splat_ply(input_path, keep_nonfinite=options.keep_nonfinite)
     mesh = read_mesh(mesh_path) if mesh_path is not None else None
     return SourceResult(splats, mesh, None, [], frame="3dgs")
 

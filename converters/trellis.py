@@ -113,7 +113,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
         raise UsageError("TRELLIS needs the mesh of the same run: pass its GLB with --mesh "
                          "(or use --from 3dgs to reconstruct a mesh from the splats)", input_path)
     _check_layout(input_path)
-    splats = read_splat_ply(input_path)
+    splats = read_splat_ply(input_path, keep_nonfinite=options.keep_nonfinite)
     require_splats(splats, input_path)
     reach = float(np.max(np.abs(splats.means)))
     if reach > CUBE_LIMIT:
@@ -194,6 +194,11 @@ def _values_evidence(path: str) -> str | None:
         xyz = np.stack([v[n].astype(np.float64) for n in ("x", "y", "z")], axis=1)
         normals = np.stack([v[n].astype(np.float64) for n in ("nx", "ny", "nz")], axis=1)
         scales = np.exp(np.stack([v[n].astype(np.float64) for n in need[6:]], axis=1))
+        # judged on the finite rows: NaN rows (which --drop-nonfinite drops) do not hide a run
+        finite = np.isfinite(xyz).all(axis=1) & np.isfinite(scales).all(axis=1)
+        if not finite.any():
+            return None
+        xyz, scales = xyz[finite], scales[finite]
         reach = float(np.max(np.abs(xyz)))
         smallest = float(np.min(scales))
     if np.any(normals != 0) or not reach <= CUBE_LIMIT or not smallest >= MIN_KERNEL * 0.99:

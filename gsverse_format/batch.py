@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
 from .atomic import WRITE_ERRNOS
+from .edit import EDIT_FLAGS
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
@@ -111,6 +112,10 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
     "physics": ("physics", lambda v: [_as_str(v)], False),
     "mass": ("mass", lambda v: [_as_str(v)], False),
     "ground": ("ground", _as_bool, False),
+    "drop_nonfinite": ("drop_nonfinite", _as_bool, False),
+    "edit_frame": ("edit_frame", _as_str, False),
+    # the edits' numbers: "x,y,z" or a JSON list, checked by SplatEdit.from_options
+    **{name: (name, lambda v: v, False) for name in EDIT_FLAGS},
 }
 
 

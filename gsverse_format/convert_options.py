@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
 from .atomic import check_target
+from .edit import SplatEdit
 from .errors import UsageError
 from .io.registry import FORMATS, find_format, suffixes
 from .model import DeformationLaw
@@ -55,6 +56,16 @@ class ConvertOptions:
     and ``mass`` (the ``--mass NAME=KG`` values) say how each object moves
     (:func:`gsverse_format.physics.parse_physics`; each such object gets a hull collider);
     ``ground`` adds a static ground box under the scene (glTF output only).
+
+    The edits (:mod:`gsverse_format.edit`, in the input file's frame, before binding):
+    ``translate``, ``rotate`` (Euler degrees) and ``scale`` (uniform, > 0) move the splats,
+    ``mesh_translate``, ``mesh_rotate`` and ``mesh_scale`` every anchor mesh (``"x,y,z"``
+    strings or sequences of numbers; scale, then rotate, then translate);
+    ``drop_nonfinite`` drops splats with NaN or infinite values instead of refusing the file;
+    ``crop_box`` (xmin, ymin, zmin, xmax, ymax, zmax) and ``crop_sphere`` (x, y, z, r) keep the
+    splats whose means lie inside, after the moves; ``min_opacity`` drops splats below it.
+    ``edit_frame`` ``"output"`` makes the edits in the output's frame instead (after the
+    frame change, as splat-transform does).
     """
 
     mesh: str | None = None
@@ -82,6 +93,17 @@ class ConvertOptions:
     physics: list[str] | None = None
     mass: list[str] | None = None
     ground: bool = False
+    translate: str | tuple[float, ...] | None = None
+    rotate: str | tuple[float, ...] | None = None
+    scale: str | float | None = None
+    mesh_translate: str | tuple[float, ...] | None = None
+    mesh_rotate: str | tuple[float, ...] | None = None
+    mesh_scale: str | float | None = None
+    drop_nonfinite: bool = False
+    crop_box: str | tuple[float, ...] | None = None
+    crop_sphere: str | tuple[float, ...] | None = None
+    min_opacity: str | float | None = None
+    edit_frame: str = "input"
 
     def __post_init__(self) -> None:  # file options given as path-like objects, kept as str
         self.mesh, self.pt_path, self.bake_poses = (
@@ -120,6 +142,8 @@ class ConvertSummary:
     physics: list[dict[str, Any]] = field(default_factory=list)
     #: The ground box: {size: [x, y, z], translation: [x, y, z], top: y}, or None.
     ground: dict[str, Any] | None = None
+    #: splats the edits dropped: ``nonfinite``, ``cropped``, ``below_opacity`` (empty: no edit)
+    edits: dict[str, int] = field(default_factory=dict)
     output_bytes: int = 0
     seconds: float = 0.0
     #: The splats were bound, but the output format (PLY) holds plain splats only.
@@ -148,6 +172,10 @@ class ConvertSummary:
         if self.max_distance is not None:
             out.append(f"  static     splats farther than {self.max_distance:.3g} from the mesh "
                        f"{'dropped' if self.dropped else 'kept as plain splats'}")
+        if self.edits:
+            e = self.edits
+            out.append(f"  edits      dropped {e['nonfinite']} non-finite, {e['cropped']} "
+                       f"outside the crop, {e['below_opacity']} below the minimum opacity")
         for obj in self.objects:
             d = obj["distance"]
             dist = (f", distance p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, max {d['max']:.3g}"
@@ -182,6 +210,7 @@ def check_options(input_path: str, output_path: str, options: ConvertOptions) ->
     """Step 1 of :func:`gsverse_format.pipeline.convert`: refuse impossible options, missing
     input files and an unwritable output (:class:`~gsverse_format.errors.UsageError`), before
     any work."""
+    SplatEdit.from_options(options)   # bad numbers: a UsageError naming the flag
     if options.deformation not in ("affine", "rigid"):
         raise UsageError(f"--deformation must be affine or rigid, not {options.deformation!r}")
     if options.sh_degree is not None and options.sh_degree not in (0, 1, 2, 3):
@@ -279,4 +308,5 @@ def source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions,
         trellis_frame = "none"
         if options.legacy_trellis_frame and source == "trellis":
             notes.append("--legacy-trellis-frame ignored: --no-frame-change keeps the PLY as is")
-    return SourceOptions(pt_path=options.pt_path, k=options.k, trellis_frame=trellis_frame), notes
+    return SourceOptions(pt_path=options.pt_path, k=options.k, trellis_frame=trellis_frame,
+                         keep_nonfinite=options.drop_nonfinite), notes

@@ -46,3 +46,9 @@ class BindingError(GsverseError):
 class OutputError(GsverseError):
     """An output cannot be written where asked: the operating system refused (permissions,
     a read-only or full file system, a file-size limit) or the path is a folder."""
+
+
+class NonFiniteError(FormatError):
+    """A reader met splat values that are not finite (NaN, infinity, beyond float32 once
+    decoded, a zero rotation quaternion); ``gsverse-convert --drop-nonfinite`` drops such
+    splats where the reader can keep them for it."""

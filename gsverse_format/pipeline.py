@@ -8,7 +8,9 @@
    a glTF or USD file holds is kept), truncate SH, and go to 7;
 3. otherwise load the source (``--from``, or detected: the table of
    :mod:`gsverse_format.converters.registry`) — splats, mesh, maybe exact anchors, in the
-   source's own frame;
+   source's own frame — and make the edits asked for (:mod:`gsverse_format.edit`: drop
+   non-finite splats, move splats and meshes, crop, minimum opacity), in that frame (a
+   format-only conversion makes them in step 2, in the file's frame);
 4. rotate that into the glTF frame (:func:`to_gltf`): the one place where a source's
    coordinates change frame (the frames are :data:`gsverse_format.io.registry.FRAMES`);
    without the frame change (``frame_change=False``) they stay in the source's frame, which
@@ -38,7 +40,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .convert_options import ConvertOptions, ConvertSummary, check_options, source_options
-from .errors import FormatError, GsverseError, UsageError
+from .edit import EditCounts, SplatEdit, edit_splats, transform_mesh
+from .errors import FormatError, GsverseError, NonFiniteError, UsageError
 from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, rotate_asset,
                           write_asset)
 from .model import (Anchoring, KhrProperties, LocalAnchors, SplatAsset, SplatCloud,
@@ -61,6 +64,13 @@ _NO_SPLATS = {"gltf": "the file has no KHR_gaussian_splatting POINTS primitive",
               "ply": "the PLY has no vertices", "usd": "the stage has no splat prim with points"}
 #: The ``source`` a summary names for a format-only conversion, by input format.
 _FORMAT_SOURCE = {"gltf": "khr", "ply": "3dgs"}
+#: Sources whose loaders keep non-finite splats for ``drop_nonfinite`` to drop
+#: (``SourceOptions.keep_nonfinite``), and the input format that does in a format-only
+#: conversion; other readers refuse such files.
+_KEEP_NONFINITE_SOURCES = ("3dgs", "trellis")
+_KEEP_NONFINITE_FORMAT = "ply"
+#: What a refusal of non-finite splats adds where ``--drop-nonfinite`` would help.
+_DROP_HINT = "; --drop-nonfinite drops those splats instead"
 
 
 def _format_only(input_path: str, output_path: str, options: ConvertOptions) -> bool:
@@ -104,11 +114,17 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         progress.stage(f"reading {os.path.basename(input_path)}")
         in_format = find_format(input_path, "read")
         summary.source = _FORMAT_SOURCE.get(in_format.name, in_format.name)
-        asset = _read_noting_usd_warnings(input_path, options, summary)
+        edit = SplatEdit.from_options(options)
+        asset = _read_noting_usd_warnings(input_path, options, summary, edit,
+                                          in_format.name == _KEEP_NONFINITE_FORMAT)
         if not asset.splat_count():
             raise FormatError(f"no splats to convert ("
                               f"{_NO_SPLATS.get(in_format.name, 'the file holds none')})",
                               input_path)
+        if not edit.is_identity:
+            asset = _edit_asset(asset, edit, options, summary, input_path)
+            if edit.frame == "input" and options.frame_change and in_format.frame != "gltf":
+                asset = rotate_asset(asset, FRAMES[in_format.frame].to_gltf)
         for i, prim in enumerate(asset.primitives):
             _require_valid_splats(prim.splats, input_path, prim_label(i, prim))
         from .converters.khr import require_valid_primitives
@@ -144,15 +160,25 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     summary.notes.extend(notes)
     reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
         else options.faces
+    edit = SplatEdit.from_options(options)
+    if not edit.is_identity:
+        summary.edits = vars(EditCounts())
     if options.meshes:
-        result = load_source(source, input_path, options.mesh, src_options, frame_change=False)
-        more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change)
+        before, after = edit.split()
+        result = load_source(source, input_path, options.mesh, src_options, frame_change=False,
+                             edit=before, summary=summary)
+        more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change,
+                                 lambda m: transform_mesh(m, before.mesh))
         result = to_gltf(result) if options.frame_change else result
+        if after is not None and not after.is_identity:   # in the output's frame
+            result = _edit_source(result, after, summary, input_path)
+            more = [transform_mesh(m, after.mesh) for m in more]
         read = list(zip([result.mesh, *more], options.meshes))
     else:
         result = load_source(source, input_path, options.mesh, src_options,
                              frame_change=options.frame_change,
-                             reconstruct_faces=reconstruct_faces, progress=progress)
+                             reconstruct_faces=reconstruct_faces, progress=progress,
+                             edit=edit, summary=summary)
         read = [(result.mesh, options.mesh or input_path)]
     for mesh, mesh_path in read:   # a rig's skin weights as readers use them
         if mesh is not None:
@@ -180,9 +206,12 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
                 options: SourceOptions | None = None, *, frame_change: bool = True,
                 reconstruct_faces: int | None = None,
-                progress: Progress | None = None) -> SourceResult:
-    """Load ``source``'s output (steps 3–5 of :func:`convert`): the loader's result rotated
-    into the glTF frame (unless ``frame_change`` is off), with an anchor mesh of about
+                progress: Progress | None = None, edit: SplatEdit | None = None,
+                summary: ConvertSummary | None = None) -> SourceResult:
+    """Load ``source``'s output (steps 3–5 of :func:`convert`): the loader's result edited
+    by ``edit`` (in the source's frame, or in the glTF frame after the rotation for
+    ``edit.frame == "output"``; what it dropped is counted in ``summary.edits``),
+    rotated into the glTF frame (unless ``frame_change`` is off), with an anchor mesh of about
     ``reconstruct_faces`` faces reconstructed from the splats when the source has none.
     (TRELLIS's PLY-to-GLB frame is ``options.trellis_frame``; :func:`convert` sets it to
     ``"none"`` with ``frame_change`` off.) ``progress`` shows each step as it starts."""
@@ -191,11 +220,20 @@ def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str 
     from .converters.reconstruct import reconstruct_mesh
 
     path = os.fspath(input_path)
-    result = get_source(source).load(path, mesh_path, options or SourceOptions())
+    hint = source in _KEEP_NONFINITE_SOURCES
+    try:
+        result = get_source(source).load(path, mesh_path, options or SourceOptions())
+    except NonFiniteError as exc:
+        raise type(exc)(exc.cause + (_DROP_HINT if hint else ""), exc.path) from None
     require_splats(result.splats, path, f"the {source} input holds none")
+    before, after = edit.split() if edit is not None else (None, None)
+    if before is not None and not before.is_identity:
+        result = _edit_source(result, before, summary, path)
     _require_valid_splats(result.splats, path)
     if frame_change:
         result = to_gltf(result)
+    if after is not None and not after.is_identity:
+        result = _edit_source(result, after, summary, path)
     if result.mesh is None:
         result = reconstruct_mesh(result, reconstruct_faces, path,
                                   stage=progress.stage if progress is not None else None)
@@ -206,14 +244,82 @@ def _require_valid_splats(splats: SplatCloud, input_path: str, label: str = "") 
     """Refuse input splats that are not valid ``KHR_gaussian_splatting`` data (non-finite
     values, negative scales, opacities outside [0, 1], zero rotation quaternions, as the PLY
     reader does) as a :class:`FormatError` naming the input: checked when they are read, so
-    that the problem is the input's, not the output's."""
+    that the problem is the input's, not the output's. Checked after the edits: non-finite
+    values and zero quaternions that reach here are what ``--drop-nonfinite`` drops, and the
+    message says so."""
     problem = splat_problem(splats)
     zero = int(np.count_nonzero(~np.any(splats.rotations != 0, axis=1)))
     if problem is None and zero:
         problem = (f"zero rotation quaternions in {zero} of {len(splats)} splats (rotations "
                    f"are unit quaternions)")
+        problem += _DROP_HINT
+    elif problem is not None and problem.startswith("non-finite"):
+        problem += _DROP_HINT
     if problem is not None:
         raise FormatError(f"{label + ': ' if label else ''}{problem}", input_path)
+
+
+def _edited(cloud: SplatCloud, edit: SplatEdit,
+            summary: ConvertSummary | None) -> tuple[SplatCloud, np.ndarray | None]:
+    """:func:`gsverse_format.edit.edit_splats`, counted into ``summary.edits``."""
+    counts = EditCounts(**(summary.edits if summary is not None and summary.edits else {}))
+    cloud, keep = edit_splats(cloud, edit, counts)
+    if summary is not None:
+        summary.edits = vars(counts)
+    return cloud, keep
+
+
+def _no_splats_left(summary: ConvertSummary | None, input_path: str) -> FormatError:
+    e = summary.edits if summary is not None else {}
+    return FormatError(f"no splats left after the edits (dropped {e.get('nonfinite', 0)} "
+                       f"non-finite, {e.get('cropped', 0)} outside the crop, "
+                       f"{e.get('below_opacity', 0)} below the minimum opacity): nothing "
+                       f"written", input_path)
+
+
+def _edit_source(result: SourceResult, edit: SplatEdit, summary: ConvertSummary | None,
+                 input_path: str) -> SourceResult:
+    """A loaded source edited in its own frame (:mod:`gsverse_format.edit`): splats, mesh,
+    and the source's exact anchors, which follow the splats kept; moving splats or mesh
+    replaces them by nearest-triangle binding."""
+    splats, keep = _edited(result.splats, edit, summary)
+    if not len(splats):
+        raise _no_splats_left(summary, input_path)
+    mesh = transform_mesh(result.mesh, edit.mesh) if result.mesh is not None else None
+    anchors, notes = result.anchors, list(result.notes)
+    if anchors is not None:
+        if not (edit.splats.is_identity and edit.mesh.is_identity):
+            notes.append("the source's exact binding was replaced by nearest-triangle binding "
+                         "(local profile): the edits moved the splats or the mesh")
+            anchors = None
+        elif keep is not None:
+            anchors = anchors.subset(keep)
+    return replace(result, splats=splats, mesh=mesh, anchors=anchors, notes=notes)
+
+
+def _edit_asset(asset: SplatAsset, edit: SplatEdit, options: ConvertOptions,
+                summary: ConvertSummary, input_path: str) -> SplatAsset:
+    """A format-only conversion's asset edited in the file's frame: each primitive's splats
+    (and the anchors that follow those kept); primitives left without splats are dropped.
+    Anchored splats are not moved (their anchors would no longer place them): a
+    :class:`UsageError` says to add ``--plain``."""
+    summary.edits = vars(EditCounts())
+    primitives = []
+    for prim in asset.primitives:
+        anchoring = None if options.plain else prim.anchoring
+        if anchoring is not None and not edit.splats.is_identity:
+            raise UsageError("--translate, --rotate and --scale would move anchored splats "
+                             "off their anchors: add --plain (the anchoring is not written), "
+                             "or convert the splats' source with --mesh", input_path)
+        splats, keep = _edited(prim.splats, edit, summary)
+        if not len(splats):
+            continue
+        if anchoring is not None and keep is not None:
+            anchoring = Anchoring(anchoring.mesh, anchoring.anchors.subset(keep))
+        primitives.append(SplatPrimitive(splats, anchoring, prim.name, prim.khr))
+    if not primitives:
+        raise _no_splats_left(summary, input_path)
+    return replace(asset, primitives=primitives)
 
 
 def _require_writable_khr(labelled: list[tuple[str, KhrProperties]], input_path: str,
@@ -244,13 +350,22 @@ def to_gltf(result: SourceResult) -> SourceResult:
 
 
 def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
-                              summary: ConvertSummary) -> SplatAsset:
-    """``read_asset``; what the USD reader replaced in foreign data goes to the summary notes."""
+                              summary: ConvertSummary, edit: SplatEdit,
+                              keeps_nonfinite: bool) -> SplatAsset:
+    """``read_asset``; what the USD reader replaced in foreign data goes to the summary notes.
+    With edits, the asset stays in the file's frame (the edits are made there), and a reader
+    that can (``keeps_nonfinite``) keeps non-finite splats for ``edit`` to drop."""
     from .io.usd import UsdReadWarning
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UsdReadWarning)
-        asset = read_input(input_path, frame_change=options.frame_change)
+        try:
+            asset = read_input(input_path, frame_change=options.frame_change
+                               and (edit.is_identity or edit.frame == "output"),
+                               keep_nonfinite=edit.drop_nonfinite and keeps_nonfinite)
+        except NonFiniteError as exc:
+            raise type(exc)(exc.cause + (_DROP_HINT if keeps_nonfinite else ""),
+                            exc.path) from None
     for w in caught:
         if issubclass(w.category, UsdReadWarning):
             summary.notes.append(str(w.message))
@@ -259,13 +374,23 @@ def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
     return asset
 
 
-def read_input(path: str | os.PathLike[str], *, frame_change: bool = True) -> SplatAsset:
+def read_input(path: str | os.PathLike[str], *, frame_change: bool = True,
+               keep_nonfinite: bool = False) -> SplatAsset:
     """:func:`~gsverse_format.io.registry.read_asset` for files from anywhere: a USD file is
     parsed in a child process (:func:`gsverse_format.io.usd.read_usd` with ``isolate``), so
     that a file that crashes the USD library (a stack overflow on deeply nested prims, an
     abort on corrupt ``.usdc`` data) is a :class:`FormatError` naming it, not the end of this
-    process."""
+    process. ``keep_nonfinite``: a 3DGS PLY's non-finite splats are kept, not refused
+    (:func:`gsverse_format.io.ply.read_ply_asset`)."""
     fmt = find_format(path, "read")
+    if keep_nonfinite and fmt.name == "ply":
+        from .io.ply import read_ply_asset
+
+        asset = read_ply_asset(path, keep_nonfinite=True)
+        if frame_change:
+            return rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+        asset.frame = fmt.frame
+        return asset
     if fmt.name != "usd":
         return read_asset(path, frame_change=frame_change)
     from .io.usd import read_usd

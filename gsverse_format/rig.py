@@ -147,12 +147,16 @@ class AnchorRig:
     def skinned(self) -> bool:
         return bool(self.joints)
 
-    def transformed(self, linear: np.ndarray) -> "AnchorRig":
-        """The rig of the mesh whose vertices were mapped by the 3×3 ``linear`` (a frame
-        change): the roots' space gets ``linear``, the inverse bind matrices its inverse on
-        the right, the morph deltas ``linear``; skinned vertices move by ``linear`` too."""
+    def transformed(self, linear: np.ndarray,
+                    translation: np.ndarray | None = None) -> "AnchorRig":
+        """The rig of the mesh whose vertices were mapped by the 3×3 ``linear`` and then moved
+        by ``translation`` (a frame change, or an edit): the roots' space gets that affine
+        map, the inverse bind matrices its inverse on the right, the morph deltas ``linear``;
+        skinned vertices move by the same map."""
         m = np.eye(4)
         m[:3, :3] = np.asarray(linear, dtype=np.float64)
+        if translation is not None:
+            m[:3, 3] = np.asarray(translation, dtype=np.float64)
         inv = np.linalg.inv(m)
         ibm = None if self.inverse_bind is None else self.inverse_bind @ inv
         targets = [np.asarray(t, np.float64) @ m[:3, :3].T for t in self.targets]

@@ -98,10 +98,15 @@ def _diagonal(mesh: TriangleMesh) -> float:
     return float(np.linalg.norm(hi.astype(np.float64) - lo))
 
 
-def read_scene_meshes(paths: list[str], frame: str, frame_change: bool) -> list[TriangleMesh]:
+def read_scene_meshes(paths: list[str], frame: str, frame_change: bool,
+                      edit: Callable[[TriangleMesh], TriangleMesh] | None = None
+                      ) -> list[TriangleMesh]:
     """The meshes of ``paths`` in the glTF frame, from the source's ``frame`` (as the source's
-    own mesh is rotated), or as they are without ``frame_change``."""
+    own mesh is rotated), or as they are without ``frame_change``; ``edit`` is applied to
+    each in the source's frame, before the rotation (``--mesh-translate`` and the like)."""
     meshes = [read_mesh(p) for p in paths]
+    if edit is not None:
+        meshes = [edit(m) for m in meshes]
     if frame_change and FRAMES[frame].name != "gltf":
         meshes = [rotate_mesh(m, FRAMES[frame].to_gltf) for m in meshes]
     return meshes

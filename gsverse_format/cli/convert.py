@@ -25,9 +25,11 @@ from typing import IO
 from ..textsafe import escape, safe_line
 from ..converters import SOURCES
 from ..pipeline import ConvertOptions, ConvertSummary, convert
+from ..edit import SplatEdit
 from ..errors import GsverseError, OutputError, UsageError
 from ..progress import Progress
 from .boundary import closed_stdout_error, parse_args, run_command
+from .edit_flags import EDIT_EPILOG, EDIT_OPTIONS, add_edit_flags
 from .grammar import (Parser, add_json, add_output, add_overwrite, add_quiet, add_version,
                       output_kind, require_input)
 
@@ -78,7 +80,8 @@ manifests:
   input). Keys: input (required), output (relative to DIR), mesh, from, pt, k, deformation,
   max-distance, absolute-distance, drop-unanchored, faces, reconstruct-faces, sh-degree,
   keep-order, plain, legacy-trellis-frame, no-frame-change, bake-poses, watertight,
-  collider, physics, mass, ground (one mesh per asset; dashes or
+  collider, physics, mass, ground, translate, rotate, scale, mesh-translate, mesh-rotate,
+  mesh-scale, drop-nonfinite, crop-box, crop-sphere, min-opacity (one mesh per asset; dashes or
   underscores). Paths are relative to the manifest's folder; booleans true/false, yes/no or
   1/0; an empty cell or a missing key takes the command line's value. Example CSV:
       input,mesh,output,faces
@@ -135,6 +138,7 @@ mesh fit:
   summary a note and --json a "fit" entry; --strict makes it an error (exit 1, nothing
   written).
 
+{edit}
 quiet:
   -q prints no progress, no summary and no warning (also in worker and child processes);
   errors are still printed (with --json also as {"error": ..., "input": ..., "exit": N} on
@@ -149,7 +153,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "(KHR_gaussian_splatting + GSVERSE_gaussian_splatting_mesh_anchor).",
         usage=f"{PROG} IN OUT [options]\n       {PROG} IN -o OUT [options]\n"
               f"       {PROG} IN... --output-dir DIR [options]",
-        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=EPILOG.replace("{edit}", EDIT_EPILOG), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("paths", nargs="+", metavar="IN",
                    help="IN OUT: the input (a 3DGS .ply, a KHR_gaussian_splatting .glb/.gltf, "
                         "a USD file .usda/.usdc/.usd/.usdz, a GaMeS / GS-Verse output folder, or "
@@ -235,6 +239,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "lowest splat; glTF KHR_implicit_shapes)")
     anc.add_argument("--plain", action="store_true",
                      help="format conversion only: write plain KHR splats without anchoring")
+    add_edit_flags(p)
     gl = p.add_argument_group("glTF output")
     gl.add_argument("--anchors", choices=("explicit", "compact"), default="explicit",
                     help="explicit: per-splat face, barycentrics, offset, rotation and scale "
@@ -278,7 +283,8 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
                           legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
                           bake_poses=args.bake_poses, anchors=args.anchors,
                           quantize=args.quantize, strict=args.strict, physics=args.physics,
-                          mass=args.mass, ground=args.ground)
+                          mass=args.mass, ground=args.ground,
+                          **{name: getattr(args, name) for name in EDIT_OPTIONS})
 
 
 def _sniff_stdin(head: bytes) -> str:
@@ -404,6 +410,11 @@ def _batch(args: argparse.Namespace, progress: Progress) -> int:
     if args.jobs is not None and args.scheduler:
         raise UsageError("--jobs is for local processes; a Dask cluster sets its own workers")
     specs = collect(args.paths, _options(args))
+    for spec in specs:   # every asset's edits (a manifest's values too) before any converts
+        try:
+            SplatEdit.from_options(spec.options)
+        except UsageError as exc:
+            raise UsageError(exc.cause, spec.origin) from None
     todo, skipped = plan(specs, args.output_dir, args.to or "glb", overwrite=args.overwrite,
                          skip_existing=args.skip_existing)
     report = run_batch(todo, args.output_dir, jobs=args.jobs, scheduler=args.scheduler,
@@ -428,6 +439,8 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress(enabled=None if not (args.quiet or args.json) else False)
 
     def work() -> int:
+        # bad edit values: exit 2 before any reading (a batch's assets: in _batch)
+        SplatEdit.from_options(_options(args), require_mesh=args.output_dir is None)
         if args.output_dir is not None:
             return _batch(args, progress)
         summary, out = _convert_single(args, parser, progress)

@@ -22,7 +22,7 @@ in any property order. The file stores *pre-activation* values; the model
 
 Activations are computed in float64 and rounded once to float32. Values that are not finite
 in a required property, decoded values beyond the float32 range (``exp`` of a log-scale above
-88.72) and zero quaternions are rejected. SuperSplat/PlayCanvas compressed PLY files (element
+88.72) and zero quaternions are rejected (or, asked to, kept for the caller to drop). SuperSplat/PlayCanvas compressed PLY files (element
 ``chunk``, ``packed_*`` properties) and 2D Gaussian splats (only ``scale_0``, ``scale_1``) are
 recognised and refused with a clear message.
 
@@ -72,7 +72,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError, UsageError
+from ...errors import FormatError, NonFiniteError, UsageError
 from ...model import SplatAsset, SplatCloud, SplatPrimitive
 from ...vocabulary import SH_C0
 from .container import read_ply_elements, write_ply
@@ -217,9 +217,15 @@ def _all_finite(values: np.ndarray) -> bool:
     return bool(np.isfinite(np.min(values)) and np.isfinite(np.max(values)))
 
 
-def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
+def read_splat_ply(path: str | os.PathLike[str], *, keep_nonfinite: bool = False) -> SplatCloud:
     """Read a 3DGS splat PLY into a :class:`SplatCloud` (activated values, (x, y, z, w)
     quaternions, coefficient-major SH). See the module docstring for the layout.
+
+    Splats with values that are not finite (NaN or infinity in a required property, values
+    beyond the float32 range once decoded, zero quaternions) are refused with a
+    :class:`~gsverse_format.errors.NonFiniteError`; with ``keep_nonfinite`` they are kept,
+    non-finite (a zero quaternion as a NaN rotation), for the caller to drop
+    (:func:`gsverse_format.edit.nonfinite_rows`).
 
     The body is memory-mapped (:mod:`.binary_body`) and decoded straight into the model's
     float32 arrays: the SH coefficients are copied once, from the file's rows into their
@@ -248,7 +254,7 @@ def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
         log_scales = block["scales"].astype(np.float64)
         q = block["rot"].astype(np.float64)[:, [1, 2, 3, 0]]      # (w, x, y, z) → (x, y, z, w)
     decoded = (means, sh if layout.dc_source == "f_dc" else sh[:, 1:, :], logit, log_scales, q)
-    if not all(_all_finite(values) for values in decoded):
+    if not keep_nonfinite and not all(_all_finite(values) for values in decoded):
         bad = []
         for key, names in blocks.items():
             if names and not bool(np.all(np.isfinite(block[key]))):
@@ -257,14 +263,14 @@ def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
         if bad:
             listed = ", ".join(f"{name} ({_rows(k)})" for name, k in bad[:6])
             more = f" and {len(bad) - 6} more properties" if len(bad) > 6 else ""
-            raise FormatError(f"{sum(k for _, k in bad)} NaN or Inf values in required "
-                              f"properties: {listed}{more}", path)
+            raise NonFiniteError(f"{sum(k for _, k in bad)} NaN or Inf values in required "
+                                 f"properties: {listed}{more}", path)
 
     def overflow(out: np.ndarray, what: str) -> None:
         """Refuse values that became infinite in float32 (the input's are finite)."""
-        if not _all_finite(out):
-            raise FormatError(f"{int(np.count_nonzero(~np.isfinite(out)))} value(s) of {what} "
-                              "exceed the float32 range", path)
+        if not keep_nonfinite and not _all_finite(out):
+            raise NonFiniteError(f"{int(np.count_nonzero(~np.isfinite(out)))} value(s) of "
+                                 f"{what} exceed the float32 range", path)
 
     def f32(values: np.ndarray, what: str) -> np.ndarray:
         with np.errstate(over="ignore"):
@@ -281,8 +287,8 @@ def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
             ptype = vertex.dtype[name].str[1:]
             if ptype[0] in "iu":
                 values /= float(np.iinfo(ptype).max)
-            elif not np.all(np.isfinite(values)):
-                raise FormatError(f"NaN or Inf values in {name}", path)
+            elif not keep_nonfinite and not np.all(np.isfinite(values)):
+                raise NonFiniteError(f"NaN or Inf values in {name}", path)
             sh[:, 0, c] = f32((values - 0.5) / SH_C0, name)
     if k > 1:
         overflow(sh[:, 1:, :], "f_rest")
@@ -301,20 +307,23 @@ def read_splat_ply(path: str | os.PathLike[str]) -> SplatCloud:
     # No view into the file is left: its pages are released here, before the float64 work.
     del block, vertex, decoded
 
-    opacities = _sigmoid(logit).astype(np.float32)
-    with np.errstate(over="ignore"):
+    with np.errstate(invalid="ignore"):   # NaN logits kept with keep_nonfinite
+        opacities = _sigmoid(logit).astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
         np.exp(log_scales, out=log_scales)
     scales = f32(log_scales, "exp(scale_0..2) (log-scales above 88.72)")
     del logit, log_scales
 
     peak = np.max(np.abs(q), axis=1, keepdims=True)
     zero = peak[:, 0] == 0.0
-    if zero.any():
+    if zero.any() and not keep_nonfinite:
         first = int(np.flatnonzero(zero)[0])
-        raise FormatError(f"{_rows(int(zero.sum()))} (first: row {first}) have a zero rotation "
-                          "quaternion (rot_0..rot_3 all 0)", path)
-    q /= peak
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
+        raise NonFiniteError(f"{_rows(int(zero.sum()))} (first: row {first}) have a zero "
+                             "rotation quaternion (rot_0..rot_3 all 0)", path)
+    peak[zero] = np.nan   # kept: no rotation, a NaN quaternion for the caller to drop
+    with np.errstate(invalid="ignore"):
+        q /= peak
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
 
     return SplatCloud(means, q.astype(np.float32), scales, opacities, sh, extra=extra)
 
@@ -396,10 +405,11 @@ def write_splat_ply(cloud: SplatCloud, path: str | os.PathLike[str], *, binary: 
 # The format table's entries: a splat asset in the PLY file's own (3DGS) frame
 
 
-def read_ply_asset(path: str | os.PathLike[str]) -> SplatAsset:
+def read_ply_asset(path: str | os.PathLike[str], *, keep_nonfinite: bool = False) -> SplatAsset:
     """Read a 3DGS splat PLY as a one-primitive :class:`SplatAsset` named after the file, in
-    the file's own coordinate frame (the 3DGS frame; no rotation here)."""
-    cloud = read_splat_ply(path)
+    the file's own coordinate frame (the 3DGS frame; no rotation here); ``keep_nonfinite`` as
+    for :func:`read_splat_ply`."""
+    cloud = read_splat_ply(path, keep_nonfinite=keep_nonfinite)
     name = os.path.splitext(os.path.basename(os.fspath(path)))[0]
     return SplatAsset([SplatPrimitive(cloud, None, name)])
 
