@@ -36,10 +36,12 @@ from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatClo
                      SplatPrimitive)
 from ..remapping.reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
+from . import cases_rig as rig_defs
 from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
 from .render_export import export_render_cases
+from .rig_poses import DEFORMED_FILE, rig_pose_list
 
 __all__ = ["export_suite", "SUITE_VERSION", "F32_UNIT_ROUNDOFF", "cov6", "LAYOUT_TEXT"]
 
@@ -99,6 +101,10 @@ COV_REASON = (
     "scaled normal m is uncertain by dm = min(8 u P / sqrt(a_c a_r), 6 sqrt(u P / a_r)) "
     "(P = |e1||e2|): Z_normal = largest sqrt(3) (2 ||A||_2 + dm) dm, a tolerance relative to "
     "the splat's rest covariance.")
+RIG_MEAN_REASON = (
+    "Rig cases: the expected outputs come from the float64 splat-local vertices (M^-1 p'); "
+    "an implementation reads or computes p' in float32 first, so X also covers the largest "
+    "|p'|.")
 OPACITY_REASON = ("pass-through: the remap never changes opacity; 2^-23 only admits a "
                   "conversion through another floating-point type in the harness.")
 SH_REASON = ("pass-through: the remap never changes SH coefficients (they are not rotated "
@@ -331,9 +337,17 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     means_list: list[np.ndarray] = [splats.means.astype(np.float64)]
     poses_meta: list[dict[str, Any]] = []
     expected_poses: list[dict[str, str]] = []
-    for p, pose in enumerate(case.poses):
+    rig = rig_pose_list(case, asset_path) if case.rig is not None else None
+    for p, pose in enumerate(rig.poses if rig is not None else case.poses):
         stem = f"pose_{p:03d}"
-        _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
+        if rig is not None:   # p' shipped, expected from the float64 splat-local vertices
+            _write_array(case_dir / DEFORMED_FILE.format(p), pose.deformed, "f4")
+            meta = {"index": p, "label": pose.label, "deformed": DEFORMED_FILE.format(p),
+                    "source": pose.source}
+        else:
+            _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
+            meta = {"index": p, "label": pose.label, "file": f"poses/{stem}.f32",
+                    "source": pose.source}
         r = remap(anchoring, pose.vertices)
         if not (np.all(np.isfinite(r.means)) and np.all(np.isfinite(r.covariances))):
             raise RuntimeError(f"{case.id}: reference output is not finite at pose {p}")
@@ -341,11 +355,13 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         _write_array(exp / f"{stem}.cov.f64", cov6(r.covariances), "f8")
         pose_arrays.append(pose.vertices)
         means_list.append(r.means)
-        poses_meta.append({"index": p, "label": pose.label, "file": f"poses/{stem}.f32",
-                           "source": pose.source})
+        poses_meta.append(meta)
         expected_poses.append({"means": f"expected/{stem}.means.f64",
                                "cov": f"expected/{stem}.cov.f64"})
-    files["poses"] = [m["file"] for m in poses_meta]
+    if rig is not None:
+        files["deformed"] = [m["deformed"] for m in poses_meta]
+    else:
+        files["poses"] = [m["file"] for m in poses_meta]
     files["expected"]["poses"] = expected_poses
     if case.skinned_asset is not None:
         _write(case_dir / "skinned.glb", case.skinned_asset)
@@ -353,14 +369,22 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     per_pose = [_condition_terms(anchoring, [verts], [means_list[0], means])
                 for verts, means in zip(pose_arrays, means_list[1:])]
     # every term is a maximum over splats and poses: the case's terms are the poses' largest
+    if rig is not None:   # an implementation rounds p' (the deformed file) before M^-1
+        for t, pose in zip(per_pose, rig.poses):
+            t["X"] = max(t["X"], float(np.max(np.linalg.norm(pose.deformed, axis=1))))
     terms = {key: max(t[key] for t in per_pose) for key in per_pose[0]}
-    extra = {}
+    extra: dict[str, Any] = {}
     if case.validator_codes:
         extra = {"validator_codes": case.validator_codes, "note": case.note}
+    if rig is not None:
+        extra["rig"] = rig.layout
+    tolerances = _tolerances(terms, per_pose)
+    if rig is not None:
+        tolerances["mean"]["reason"] += " " + RIG_MEAN_REASON
     return {
         "id": case.id,
         "suite_version": SUITE_VERSION,
-        "kind": "remap",
+        "kind": "remap" if rig is None else "rig",
         "description": case.description,
         "tags": case.tags,
         "expect": "remap",
@@ -372,7 +396,7 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         "pose_count": len(case.poses),
         "poses": poses_meta,
         "files": files,
-        "tolerances": _tolerances(terms, per_pose),
+        "tolerances": tolerances,
     }
 
 
@@ -488,10 +512,16 @@ def export_suite(directory: str | os.PathLike) -> dict:
                    json.dumps(manifest, indent=1).encode("utf-8"))
             entries.append({"id": case.id, "kind": "remap", "tags": case.tags,
                             "path": f"cases/{case.id}"})
+        for case in rig_defs.rig_cases():
+            manifest = _export_remap(case, tmp / "cases" / case.id)
+            _write(tmp / "cases" / case.id / "case.json",
+                   json.dumps(manifest, indent=1).encode("utf-8"))
+            entries.append({"id": case.id, "kind": "rig", "tags": case.tags,
+                            "path": f"cases/{case.id}"})
         cache: dict = {}
         scratch = tmp / ".bases"
         scratch.mkdir()
-        for invalid in invalid_defs.invalid_cases():
+        for invalid in invalid_defs.invalid_cases() + rig_defs.rig_invalid_cases():
             manifest = _export_invalid(invalid, tmp / "cases" / invalid.id, cache, scratch)
             _write(tmp / "cases" / invalid.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))
@@ -507,6 +537,7 @@ def export_suite(directory: str | os.PathLike) -> dict:
             "layout": "LAYOUT.md",
             "guide": "spec/conformance.md of gsverse-format",
             "counts": {"remap": sum(e["kind"] == "remap" for e in entries),
+                       "rig": sum(e["kind"] == "rig" for e in entries),
                        "invalid": sum(e["kind"] == "invalid" for e in entries),
                        "render": len(render_entries)},
             "cases": entries,
