@@ -218,7 +218,7 @@ def _layout_edit(spec: RigSpec):
 
 def _case(cid: str, description: str, profile: str, law: str | None, mesh: TriangleMesh,
           spec: RigSpec, degree: int, tags: list[str], codes: list[str], note: str,
-          per_face: int = 3) -> RemapCase:
+          per_face: int = 2) -> RemapCase:
     rng = case_rng(cid)
     face = faces_from_counts(rng.integers(1, per_face + 1, mesh.face_count))
     anchors = make_anchors(profile, law, mesh, face, random_barycentrics(rng, len(face)), rng)
@@ -243,7 +243,7 @@ def rig_cases() -> list[RemapCase]:
         "translation and rotations animated), the splat node translated, rotated and scaled "
         "1.3x: the skinned vertices are in the scene's global space and M^-1 brings them into "
         "the splat primitive's local space; the anchor node is drawn.", "local", "affine",
-        mesh, RigSpec(_splat_trs(), hidden=False), 2, ["rig:skin", "rig:splat-node"],
+        mesh, RigSpec(_splat_trs(), hidden=False), 1, ["rig:skin", "rig:splat-node"],
         ["ANCHOR_MESH_INSTANTIATED"], drawn))
 
     mesh = TriangleMesh(v, f, rig=_chain_rig(v, m_splat, h))
@@ -252,7 +252,7 @@ def rig_cases() -> list[RemapCase]:
         "rig-skinned-hidden-anchor-node", "local profile, rigid law: the skinned tube of "
         "rig-skinned with its anchor node hidden (KHR_node_visibility visible: false) and "
         "placed by a transform of its own, which is ignored: a hidden node is still skinned.",
-        "local", "rigid", mesh, RigSpec(_splat_trs(), anchor_trs=anchor_trs), 1,
+        "local", "rigid", mesh, RigSpec(_splat_trs(), anchor_trs=anchor_trs), 0,
         ["rig:skin", "rig:splat-node", "rig:hidden-anchor-node"], [], ""))
 
     vm, fm = tube(6, 10, 0.25, 1.0)
@@ -263,7 +263,7 @@ def rig_cases() -> list[RemapCase]:
         "the morphed vertices are already in the splat primitive's local space (no M^-1, the "
         "anchor node's transform ignored).", "local", "affine", mesh,
         RigSpec(_splat_trs(), anchor_trs=_trs((0.5, 1.0, -0.5), (1, 0, 0), -30.0, 2.0),
-                skinned=False), 3, ["rig:morph", "rig:splat-node"], [], ""))
+                skinned=False), 2, ["rig:morph", "rig:splat-node"], [], ""))
 
     body, fb = tube(6, 8, 0.2, 1.0)
     arm, fa = tube(4, 6, 0.06, 0.4, (0.0, 0.0, 0.0))
@@ -276,7 +276,7 @@ def rig_cases() -> list[RemapCase]:
         "rig-two-parts-merged", "games profile: a body and an arm, two skinned parts merged "
         "into one anchor mesh with one merged skin of five joints (what gsverse-convert --mesh "
         "writes for a character of several primitives), the splat node transformed.",
-        "games", None, mesh, RigSpec(_splat_trs()), 2,
+        "games", None, mesh, RigSpec(_splat_trs()), 0,
         ["rig:skin", "rig:splat-node", "rig:merged-parts"], [], ""))
 
     rig = _chain_rig(v, m_splat, h)

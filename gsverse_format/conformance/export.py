@@ -8,6 +8,8 @@ IEEE float32, ``.f64`` IEEE float64)::
     DIR/cases/<id>/case.json            manifest: what the case tests, files, tolerances
     DIR/cases/<id>/asset.glb            the asset to import (one anchored splat primitive)
     DIR/cases/<id>/poses/pose_NNN.f32   (V, 3) anchor-mesh vertex positions of pose NNN
+    DIR/cases/<id>/poses/deformed_NNN.f32  rig cases: (V, 3) vertices p' of pose NNN as skinning
+                                        or morphing outputs them (.rig_poses)
     DIR/cases/<id>/expected/...         float64 reference outputs (see LAYOUT.md)
     DIR/cases/<id>/skinned.glb          skinned cases: the animation the poses come from
     DIR/cases/<id>/reference/*.png      render cases: the reference pictures (.render_export)
@@ -449,6 +451,18 @@ Coordinates are the asset's local (glTF) space: metres, +Y up, right-handed.
     cases/<id>/skinned.glb             skinned cases only: the animation sampled into the poses
     cases/<id>/expected/...            float64 reference (read by the runner, not by you)
 
+Rig cases (kind "rig", the anchor mesh animated by asset.glb itself, no pose_NNN.f32):
+
+    cases/<id>/poses/deformed_NNN.f32  (V, 3) p': the anchor vertices as skinning/morphing output
+                                       them (skinned: the scene's global space)
+    case.json "rig"                    splat_node_matrix M (16, column-major), skinned, ...
+    case.json "poses"[NNN].source      {"kind": "rest"} or {"kind": "animation", "animation": A,
+                                       "time": T}
+
+    Pose NNN in the splat primitive's local space is M^-1 p' for a skinned anchor mesh (do it in
+    double precision), p' for a morph-only one; or sample the asset's animation A at time T
+    (weights normalized per vertex), then M^-1. Remap that, dump pose_NNN as below.
+
 Render cases (listed under `render_cases` in suite.json, the render level):
 
     cases/<id>/case.json               manifest (kind "render"): frames (deformation, camera), thresholds
@@ -468,7 +482,7 @@ Remap cases:
       or rest.rotation (N, 4) unit quaternion x, y, z, w  +  rest.scale (N, 3) linear
     rest.opacity     (N,)    imported opacity (linear)
     rest.sh          (N, K, 3) imported SH coefficients, coefficient-major
-    pose_NNN.means   (N, 3)  means after remapping onto poses/pose_NNN.f32
+    pose_NNN.means   (N, 3)  means after remapping onto poses/pose_NNN.f32 (rig: pose NNN)
     pose_NNN.cov     (N, 6)  covariances after that remap
       or pose_NNN.rotation (N, 4) + pose_NNN.scale (N, 3)
     posed.opacity    (N,)    opacity the splats carry after the last pose
