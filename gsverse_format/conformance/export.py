@@ -360,7 +360,8 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         poses_meta.append(meta)
         expected_poses.append({"means": f"expected/{stem}.means.f64",
                                "cov": f"expected/{stem}.cov.f64"})
-    if rig is not None:
+    if rig is not None:   # no splat-local pose files: a harness must do M^-1 itself
+        del files["poses"]
         files["deformed"] = [m["deformed"] for m in poses_meta]
     else:
         files["poses"] = [m["file"] for m in poses_meta]
