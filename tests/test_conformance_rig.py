@@ -265,3 +265,34 @@ def test_the_guide_and_layout_describe_the_rig_cases(suite, manifests):
     assert "deformed_NNN.f32" in guide and "splat_node_matrix" in guide
     layout = (suite / "LAYOUT.md").read_text(encoding="utf-8")
     assert "deformed_NNN.f32" in layout and "M^-1 p'" in layout
+
+
+# --------------------------------------------------------------------------- gsverse-pose
+
+def test_gsverse_pose_poses_the_rig_assets_as_the_suite_expects(suite, manifests, tmp_path):
+    """``gsverse-pose ASSET`` (the asset's own animation, :func:`open_gltf_source`) poses the
+    anchor mesh in splat-local space (M⁻¹ for skinned meshes, the anchor node's transform
+    ignored for morph-only ones), so its posed splats are the suite's expected outputs."""
+    from gsverse_format.cli.pose import main as pose_main
+    from gsverse_format.poses.gltf_source import open_gltf_source
+
+    for cid in RIG_IDS:
+        m = manifests[cid]
+        path = suite / "cases" / cid / "asset.glb"
+        source = open_gltf_source(path)
+        mesh = read_asset(str(path)).primitives[0].anchoring.mesh
+        source.match(mesh.vertices)
+        sampled = sample_rig(path.read_bytes(), [p["source"] for p in m["poses"]])
+        for p in m["poses"][1:]:
+            np.testing.assert_allclose(source.at(p["source"]["time"]),
+                                       sampled[p["index"]][1], rtol=0, atol=1e-12)
+    for cid in ("rig-skinned", "rig-morph-weights"):   # the command line, end to end
+        m = manifests[cid]
+        out = tmp_path / cid
+        assert pose_main([str(suite / "cases" / cid / "asset.glb"), str(out), "--times", "0.35",
+                          "0.8", "--to", "glb", "-q"]) == 0
+        for p, posed in enumerate(sorted(out.glob("*.glb")), start=1):
+            got = read_gltf(posed).primitives[0].splats.means
+            exp = suite / "cases" / cid / m["files"]["expected"]["poses"][p]["means"]
+            error = np.abs(got - np.fromfile(exp, "<f8").reshape(-1, 3)).max()
+            assert error <= m["tolerances"]["mean"]["per_pose"][p], (cid, p, error)
