@@ -22,6 +22,7 @@ are the rig refusals: a skinned, and a morphed, anchor mesh instantiated by two 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,7 +44,7 @@ RIG_TIMES = (0.35, 0.8)
 #: Key times of the rig cases' animations (LINEAR keys; the sampled times fall between them).
 _KEYS = np.array([0.0, 0.5, 1.0], np.float32)
 #: The splat node of the rig cases: translation, rotation (x, y, z, w), uniform scale.
-SPLAT_NODE = {"translation": [0.4, -0.25, 0.3], "axis": (1.0, 2.0, 0.5), "degrees": 35.0,
+SPLAT_NODE: dict[str, Any] = {"translation": [0.4, -0.25, 0.3], "axis": (1.0, 2.0, 0.5), "degrees": 35.0,
               "scale": 1.3}
 
 
@@ -280,11 +281,13 @@ def rig_cases() -> list[RemapCase]:
         ["rig:skin", "rig:splat-node", "rig:merged-parts"], [], ""))
 
     rig = _chain_rig(v, m_splat, h)
+    joints, weights = rig.joints_0, rig.weights_0
+    assert joints is not None and weights is not None
     rng = case_rng("rig-weights-unnormalized/weights")
-    w = rig.weights_0.astype(np.float64) * rng.uniform(0.5, 1.6, (len(v), 1))
+    w = weights.astype(np.float64) * rng.uniform(0.5, 1.6, (len(v), 1))
     zero = [int(len(v) // 3), int(2 * len(v) // 3)]
     w[zero] = 0.0                   # all zero: weight 1 on the first influence (JOINTS_0[0])
-    rig.joints_0[zero, 0] = [1, 2]
+    joints[zero, 0] = [1, 2]
     rig.weights_0 = w.astype(np.float32)
     mesh = TriangleMesh(v, f, rig=rig)
     out.append(_case(

@@ -43,7 +43,8 @@ from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
 from .render_export import export_render_cases
-from .rig_poses import DEFORMED_FILE, rig_pose_list
+from .case_tools import Pose
+from .rig_poses import DEFORMED_FILE, RigPose, rig_pose_list
 
 __all__ = ["export_suite", "SUITE_VERSION", "F32_UNIT_ROUNDOFF", "cov6", "LAYOUT_TEXT"]
 
@@ -340,16 +341,17 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     poses_meta: list[dict[str, Any]] = []
     expected_poses: list[dict[str, str]] = []
     rig = rig_pose_list(case, asset_path) if case.rig is not None else None
-    for p, pose in enumerate(rig.poses if rig is not None else case.poses):
+    poses: list[Pose | RigPose] = list(rig.poses) if rig is not None else list(case.poses)
+    for p, pose in enumerate(poses):
         stem = f"pose_{p:03d}"
-        if rig is not None:   # p' shipped, expected from the float64 splat-local vertices
+        meta: dict[str, Any] = {"index": p, "label": pose.label}
+        if isinstance(pose, RigPose):   # p' shipped, expected from the float64 local vertices
             _write_array(case_dir / DEFORMED_FILE.format(p), pose.deformed, "f4")
-            meta = {"index": p, "label": pose.label, "deformed": DEFORMED_FILE.format(p),
-                    "source": pose.source}
+            meta["deformed"] = DEFORMED_FILE.format(p)
         else:
             _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
-            meta = {"index": p, "label": pose.label, "file": f"poses/{stem}.f32",
-                    "source": pose.source}
+            meta["file"] = f"poses/{stem}.f32"
+        meta["source"] = pose.source
         r = remap(anchoring, pose.vertices)
         if not (np.all(np.isfinite(r.means)) and np.all(np.isfinite(r.covariances))):
             raise RuntimeError(f"{case.id}: reference output is not finite at pose {p}")
