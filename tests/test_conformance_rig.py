@@ -296,3 +296,17 @@ def test_gsverse_pose_poses_the_rig_assets_as_the_suite_expects(suite, manifests
             exp = suite / "cases" / cid / m["files"]["expected"]["poses"][p]["means"]
             error = np.abs(got - np.fromfile(exp, "<f8").reshape(-1, 3)).max()
             assert error <= m["tolerances"]["mean"]["per_pose"][p], (cid, p, error)
+
+
+def test_rig_assets_are_valid_and_warn_only_where_the_manifest_says(suite, manifests):
+    from gsverse_format.validators.issues import Severity
+    from gsverse_format.validators.validate import validate_file
+
+    for cid in RIG_IDS:
+        report = validate_file(suite / "cases" / cid / "asset.glb")
+        assert not [f for f in report.findings if f.severity == Severity.ERROR], cid
+        warned = {f.code for f in report.findings if f.severity <= Severity.WARNING}
+        assert warned == set(manifests[cid].get("validator_codes", [])), (cid, warned)
+    for cid in RIG_INVALID:
+        report = validate_file(suite / "cases" / cid / "asset.glb")
+        assert manifests[cid]["validator_code"] in report.codes(), cid
