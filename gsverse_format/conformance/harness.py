@@ -55,7 +55,8 @@ class Plugin(Protocol):
     ``rest`` and ``apply_pose`` return a dict with ``means`` and either ``cov`` (N, 6) or
     ``rotation`` (N, 4, xyzw) and ``scale`` (N, 3); ``rest`` and ``splat_data`` also return
     ``opacity`` (N,) and ``sh`` (N, K, 3). float32 arrays are dumped as ``.f32``, others as
-    ``.f64``.
+    ``.f64``. An optional ``rig_pose(folder, manifest, p)`` poses a rig case itself (sampled,
+    or M⁻¹ of its own); without it :func:`pose_vertices` does M⁻¹ in float64.
     """
 
     def load(self, asset_path: str) -> None: ...          # raises Refused
