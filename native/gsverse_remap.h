@@ -75,6 +75,14 @@
  *   the rest SCALE. Derived anchors are used as stored ones: before deriving, refuse a zero
  *   rest ROTATION (gsv_check_quaternions_nonzero, before normalizing it) and a negative rest
  *   SCALE component (gsv_check_scales_nonnegative). Then remap as with stored anchors.
+ *
+ *   Animated anchor meshes (spec §Animated anchor meshes): an engine skins and morphs the
+ *   anchor mesh itself; skinned vertices come out in the scene's global space (glTF ignores
+ *   the transform of the node drawing a skinned mesh). gsv_splat_local() brings them into the
+ *   splat primitive's local space in double precision, M^-1 p', with M the global matrix of
+ *   the splat node (16 doubles, column-major as glTF's node.matrix; affine, last row
+ *   0 0 0 1); it returns 0 when M is singular or not finite. The vertices of a morph-only
+ *   (unskinned) anchor mesh are already splat-local: remap them as they are.
  */
 #ifndef GSVERSE_REMAP_H
 #define GSVERSE_REMAP_H
@@ -200,6 +208,8 @@ GSV_API int gsv_faces_from_counts(const uint32_t *counts, size_t count_len, size
 GSV_API int gsv_derive_local(const float *rest_vertices, const uint32_t *indices, size_t n,
                              const uint32_t *face, const float *means, const float *rotations,
                              float *bary, float *offset, float *rotation);
+GSV_API int gsv_splat_local(const float *deformed, size_t vertex_count, const double m[16],
+                            float *out);
 
 #ifdef __cplusplus
 }
@@ -924,6 +934,38 @@ GSV_API int gsv_derive_local(const float *rest_vertices, const uint32_t *indices
             rotation[4 * s] = (float)ox; rotation[4 * s + 1] = (float)oy;
             rotation[4 * s + 2] = (float)oz; rotation[4 * s + 3] = (float)ow;
         }
+    }
+    return 1;
+}
+
+GSV_API int gsv_splat_local(const float *deformed, size_t vertex_count, const double m[16],
+                            float *out) {
+    /* column-major: element (row r, column c) is m[4c + r]; A = upper 3x3, t = m[12..14] */
+    double a[9], inv[9], det;
+    size_t i;
+    int r, c;
+    for (c = 0; c < 3; ++c)
+        for (r = 0; r < 3; ++r) a[3 * r + c] = m[4 * c + r];
+    for (i = 0; i < 16; ++i)
+        if (!(m[i] - m[i] == 0.0)) return 0;   /* NaN or infinity */
+    inv[0] = a[4] * a[8] - a[5] * a[7];
+    inv[1] = a[2] * a[7] - a[1] * a[8];
+    inv[2] = a[1] * a[5] - a[2] * a[4];
+    inv[3] = a[5] * a[6] - a[3] * a[8];
+    inv[4] = a[0] * a[8] - a[2] * a[6];
+    inv[5] = a[2] * a[3] - a[0] * a[5];
+    inv[6] = a[3] * a[7] - a[4] * a[6];
+    inv[7] = a[1] * a[6] - a[0] * a[7];
+    inv[8] = a[0] * a[4] - a[1] * a[3];
+    det = a[0] * inv[0] + a[1] * inv[3] + a[2] * inv[6];
+    if (det == 0.0 || !(det - det == 0.0)) return 0;
+    for (i = 0; i < 9; ++i) inv[i] /= det;
+    for (i = 0; i < vertex_count; ++i) {
+        double x = (double)deformed[3 * i] - m[12];
+        double y = (double)deformed[3 * i + 1] - m[13];
+        double z = (double)deformed[3 * i + 2] - m[14];
+        for (r = 0; r < 3; ++r)
+            out[3 * i + r] = (float)(inv[3 * r] * x + inv[3 * r + 1] * y + inv[3 * r + 2] * z);
     }
     return 1;
 }

@@ -17,6 +17,7 @@ import gsverse_format.quaternion as quaternion
 import gsverse_format.remapping.reference as remap_module
 from gsverse_format import frames as frames_module
 from gsverse_format.conformance import cases as case_defs
+from gsverse_format.conformance import cases_rig as rig_defs
 from gsverse_format.conformance import invalid_cases as invalid_defs
 from gsverse_format.conformance import render_export
 from gsverse_format.conformance.render_export import copy_reference_pictures
@@ -101,7 +102,8 @@ def test_suite_covers_what_plugins_must_handle(suite, manifests):
     assert set(face) == {1, 2, 3, 4, 5, 6}
     assert len(_ids(manifests, lambda m: m["kind"] == "invalid")) >= 15
     size = sum(p.stat().st_size for p in suite.rglob("*") if p.is_file())
-    assert size < 7e6, size   # a few MB: the numbers level about 5.8, the render level 0.9
+    # a few MB: the numbers level about 6.2 (the rig cases 0.4), the render level 0.9
+    assert size < 7.5e6, size
 
 
 def test_suite_covers_valid_encodings(suite, manifests):
@@ -158,13 +160,14 @@ def test_manifests_files_and_tolerances(suite, manifests):
             continue
         v = m["anchor"]["vertex_count"]
         n = m["splat_count"]
+        key = "deformed" if m["kind"] == "rig" else "file"   # rig cases ship p', not poses
         for pose in m["poses"]:
-            assert (folder / pose["file"]).stat().st_size == v * 3 * 4
+            assert (folder / pose[key]).stat().st_size == v * 3 * 4
         for exp in m["files"]["expected"]["poses"]:
             assert (folder / exp["means"]).stat().st_size == n * 3 * 8
             assert (folder / exp["cov"]).stat().st_size == n * 6 * 8
         assert m["poses"][0]["source"]["kind"] == "rest"
-        pose0 = np.fromfile(folder / m["poses"][0]["file"], "<f4").reshape(-1, 3)
+        pose0 = np.fromfile(folder / m["poses"][0][key], "<f4").reshape(-1, 3)
         for key, tol in m["tolerances"].items():
             assert tol["reason"] and tol["metric"], (cid, key)
         assert 0 < m["tolerances"]["mean"]["atol"] and 0 < m["tolerances"]["covariance"]["rtol"]
@@ -317,8 +320,11 @@ def test_cli_export_and_dump(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(case_defs, "remap_cases", lambda: remap_cases()[:1])
     monkeypatch.setattr(invalid_defs, "invalid_cases", lambda: invalid_cases()[:2])
     monkeypatch.setattr(render_export, "render_cases", lambda: renders()[:1])
+    monkeypatch.setattr(rig_defs, "rig_cases", lambda: [])
+    monkeypatch.setattr(rig_defs, "rig_invalid_cases", lambda: [])
     assert main(["export", str(tmp_path / "s")]) == 0
-    assert "1 render cases" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "1 render cases" in out and "0 rig cases" in out
     assert main(["dump", str(tmp_path / "s"), str(tmp_path / "r")]) == 0
     assert main(["check", str(tmp_path / "s"), str(tmp_path / "r")]) == 0
     assert "4 passed" in capsys.readouterr().out
@@ -560,7 +566,7 @@ def test_broken_float16_accumulation_fails(suite, manifests, tmp_path):
     with np.errstate(all="ignore"):
         report = _run(suite, tmp_path / "r", _Float16Plugin)
     failed = _failed(report)
-    remap_cases = _ids(manifests, lambda m: m["kind"] == "remap")
+    remap_cases = _ids(manifests, lambda m: m["kind"] in ("remap", "rig"))
     for cid in ("local-affine-offset-1e5", "games-offset-1e5", "local-rigid-extreme-scales",
                 "local-affine-stretch", "games-twist", "local-rigid-skinned",
                 "games-near-coincident-vertices"):
@@ -587,7 +593,7 @@ def test_broken_missing_quaternion_renormalization_fails_the_quantized_rotation_
 
 def test_broken_sh_rotation_fails_exactly_the_cases_with_higher_sh(suite, manifests, tmp_path):
     report = _run(suite, tmp_path / "r", _ShRotatingPlugin)
-    higher = _ids(manifests, lambda m: m["kind"] == "remap" and m["sh_degree"] >= 1)
+    higher = _ids(manifests, lambda m: m["kind"] in ("remap", "rig") and m["sh_degree"] >= 1)
     assert _failed(report) == higher
     assert all(c.worst.quantity == "sh" and c.worst.dump == "posed"
                for c in report.cases if c.status == "fail")
@@ -962,7 +968,7 @@ def test_broken_rho_on_covariance_fails_the_games_cases(suite, manifests, tmp_pa
         report = _run(suite, tmp_path / "r", _RhoOnCovariancePlugin)
     finally:
         harness._CACHE.clear()
-    games = _ids(manifests, lambda m: m["kind"] == "remap" and "profile:games" in m["tags"])
+    games = _ids(manifests, lambda m: m["kind"] in ("remap", "rig") and "profile:games" in m["tags"])
     assert _failed(report) == games
 
 
@@ -1032,7 +1038,7 @@ def test_float32_games_needs_the_relative_centroid_not_the_relative_mean(suite, 
     with np.errstate(all="ignore"):
         naive = _failed(_run(suite, tmp_path / "naive", _Float32GamesPlugin))
         literal = _failed(_run(suite, tmp_path / "literal", _LiteralCentroidPlugin))
-    games = _ids(manifests, lambda m: m["kind"] == "remap" and "profile:games" in m["tags"])
+    games = _ids(manifests, lambda m: m["kind"] in ("remap", "rig") and "profile:games" in m["tags"])
     assert not naive & games, sorted(naive & games)
     assert {"games-offset-1e5", "games-near-coincident-vertices"} <= literal
     assert literal <= games

@@ -84,6 +84,7 @@ def _declare(lib: ctypes.CDLL) -> ctypes.CDLL:
         "gsv_check_scales_nonnegative": ([P, S], I),
         "gsv_faces_from_counts": ([P, S, S, S, P], I),
         "gsv_derive_local": ([P, P, S, P, P, P, P, P, P], I),
+        "gsv_splat_local": ([P, S, P, P], I),
         "gsv_dequantize": ([ctypes.c_int32, I, I], ctypes.c_double),
         "gsv_sizeof_rest_face": ([], S),
         "gsv_sizeof_local_face": ([], S),
@@ -205,6 +206,20 @@ class CPlugin:
             self.lib.gsv_normalize_quaternions(_ptr(self.rotation), self.n)
             self.lib.gsv_prepare_rest(_ptr(self.vertices_rest), _ptr(self.indices), self.faces,
                                       _ptr(self.rest_faces))
+
+    def rig_pose(self, folder: Path, manifest: dict, p: int) -> np.ndarray:
+        """A rig case's pose as a native engine gets it: the deformed vertices p' (what its
+        skinning and morphing output) and the splat node's matrix M; the header does M^-1 in
+        double for a skinned anchor mesh (spec/conformance.md §Rig cases)."""
+        deformed = np.fromfile(folder / manifest["files"]["deformed"][p], "<f4").reshape(-1, 3)
+        rig = manifest["rig"]
+        if not rig["skinned"]:
+            return deformed
+        m = np.ascontiguousarray(rig["splat_node_matrix"], dtype=np.float64)
+        out = np.zeros_like(deformed)
+        if not self.lib.gsv_splat_local(_ptr(deformed), len(deformed), _ptr(m), _ptr(out)):
+            raise ValueError("the splat node's matrix is singular")
+        return out
 
     def rest(self) -> dict[str, np.ndarray]:
         rot, scale = self.rest_rotation, self.rest_scale

@@ -65,6 +65,9 @@ class RemapCase:
     #: data in other valid layouts (byteStride, quantized rest pose, no indices, node
     #: transforms); the expected outputs are computed from the edited file as read back
     edit: Callable[[dict, bytes], tuple[dict, bytes]] | None = None
+    #: rig cases (:mod:`.cases_rig`): the layout of the animated anchor mesh (a ``RigSpec``);
+    #: their animated poses are sampled from the written asset (:mod:`.rig_export`)
+    rig: Any = None
 
 
 # --------------------------------------------------------------------------- small helpers

@@ -70,7 +70,8 @@ def _export(args) -> int:
 
     suite = export_suite(args.dir)
     counts = suite["counts"]
-    _say(args, f"{PROG}: wrote {counts['remap']} remap cases, {counts['invalid']} invalid cases "
+    _say(args, f"{PROG}: wrote {counts['remap']} remap cases, {counts.get('rig', 0)} rig cases, "
+               f"{counts['invalid']} invalid cases "
                f"and {counts['render']} render cases to {args.dir}",
          {"command": "export", "dir": args.dir, "counts": counts})
     return 0

@@ -8,6 +8,8 @@ IEEE float32, ``.f64`` IEEE float64)::
     DIR/cases/<id>/case.json            manifest: what the case tests, files, tolerances
     DIR/cases/<id>/asset.glb            the asset to import (one anchored splat primitive)
     DIR/cases/<id>/poses/pose_NNN.f32   (V, 3) anchor-mesh vertex positions of pose NNN
+    DIR/cases/<id>/poses/deformed_NNN.f32  rig cases: (V, 3) vertices p' of pose NNN as skinning
+                                        or morphing outputs them (.rig_poses)
     DIR/cases/<id>/expected/...         float64 reference outputs (see LAYOUT.md)
     DIR/cases/<id>/skinned.glb          skinned cases: the animation the poses come from
     DIR/cases/<id>/reference/*.png      render cases: the reference pictures (.render_export)
@@ -36,10 +38,13 @@ from ..model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatClo
                      SplatPrimitive)
 from ..remapping.reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
+from . import cases_rig as rig_defs
 from . import invalid_cases as invalid_defs
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
 from .render_export import export_render_cases
+from .case_tools import Pose
+from .rig_poses import DEFORMED_FILE, RigPose, rig_pose_list
 
 __all__ = ["export_suite", "SUITE_VERSION", "F32_UNIT_ROUNDOFF", "cov6", "LAYOUT_TEXT"]
 
@@ -99,6 +104,10 @@ COV_REASON = (
     "scaled normal m is uncertain by dm = min(8 u P / sqrt(a_c a_r), 6 sqrt(u P / a_r)) "
     "(P = |e1||e2|): Z_normal = largest sqrt(3) (2 ||A||_2 + dm) dm, a tolerance relative to "
     "the splat's rest covariance.")
+RIG_MEAN_REASON = (
+    "Rig cases: the expected outputs come from the float64 splat-local vertices (M^-1 p'); "
+    "an implementation reads or computes p' in float32 first, so X also covers the largest "
+    "|p'|.")
 OPACITY_REASON = ("pass-through: the remap never changes opacity; 2^-23 only admits a "
                   "conversion through another floating-point type in the harness.")
 SH_REASON = ("pass-through: the remap never changes SH coefficients (they are not rotated "
@@ -331,9 +340,18 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     means_list: list[np.ndarray] = [splats.means.astype(np.float64)]
     poses_meta: list[dict[str, Any]] = []
     expected_poses: list[dict[str, str]] = []
-    for p, pose in enumerate(case.poses):
+    rig = rig_pose_list(case, asset_path) if case.rig is not None else None
+    poses: list[Pose | RigPose] = list(rig.poses) if rig is not None else list(case.poses)
+    for p, pose in enumerate(poses):
         stem = f"pose_{p:03d}"
-        _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
+        meta: dict[str, Any] = {"index": p, "label": pose.label}
+        if isinstance(pose, RigPose):   # p' shipped, expected from the float64 local vertices
+            _write_array(case_dir / DEFORMED_FILE.format(p), pose.deformed, "f4")
+            meta["deformed"] = DEFORMED_FILE.format(p)
+        else:
+            _write_array(case_dir / "poses" / f"{stem}.f32", pose.vertices, "f4")
+            meta["file"] = f"poses/{stem}.f32"
+        meta["source"] = pose.source
         r = remap(anchoring, pose.vertices)
         if not (np.all(np.isfinite(r.means)) and np.all(np.isfinite(r.covariances))):
             raise RuntimeError(f"{case.id}: reference output is not finite at pose {p}")
@@ -341,11 +359,14 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         _write_array(exp / f"{stem}.cov.f64", cov6(r.covariances), "f8")
         pose_arrays.append(pose.vertices)
         means_list.append(r.means)
-        poses_meta.append({"index": p, "label": pose.label, "file": f"poses/{stem}.f32",
-                           "source": pose.source})
+        poses_meta.append(meta)
         expected_poses.append({"means": f"expected/{stem}.means.f64",
                                "cov": f"expected/{stem}.cov.f64"})
-    files["poses"] = [m["file"] for m in poses_meta]
+    if rig is not None:   # no splat-local pose files: a harness must do M^-1 itself
+        del files["poses"]
+        files["deformed"] = [m["deformed"] for m in poses_meta]
+    else:
+        files["poses"] = [m["file"] for m in poses_meta]
     files["expected"]["poses"] = expected_poses
     if case.skinned_asset is not None:
         _write(case_dir / "skinned.glb", case.skinned_asset)
@@ -353,14 +374,22 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
     per_pose = [_condition_terms(anchoring, [verts], [means_list[0], means])
                 for verts, means in zip(pose_arrays, means_list[1:])]
     # every term is a maximum over splats and poses: the case's terms are the poses' largest
+    if rig is not None:   # an implementation rounds p' (the deformed file) before M^-1
+        for t, pose in zip(per_pose, rig.poses):
+            t["X"] = max(t["X"], float(np.max(np.linalg.norm(pose.deformed, axis=1))))
     terms = {key: max(t[key] for t in per_pose) for key in per_pose[0]}
-    extra = {}
+    extra: dict[str, Any] = {}
     if case.validator_codes:
         extra = {"validator_codes": case.validator_codes, "note": case.note}
+    if rig is not None:
+        extra["rig"] = rig.layout
+    tolerances = _tolerances(terms, per_pose)
+    if rig is not None:
+        tolerances["mean"]["reason"] += " " + RIG_MEAN_REASON
     return {
         "id": case.id,
         "suite_version": SUITE_VERSION,
-        "kind": "remap",
+        "kind": "remap" if rig is None else "rig",
         "description": case.description,
         "tags": case.tags,
         "expect": "remap",
@@ -372,7 +401,7 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         "pose_count": len(case.poses),
         "poses": poses_meta,
         "files": files,
-        "tolerances": _tolerances(terms, per_pose),
+        "tolerances": tolerances,
     }
 
 
@@ -425,6 +454,18 @@ Coordinates are the asset's local (glTF) space: metres, +Y up, right-handed.
     cases/<id>/skinned.glb             skinned cases only: the animation sampled into the poses
     cases/<id>/expected/...            float64 reference (read by the runner, not by you)
 
+Rig cases (kind "rig", the anchor mesh animated by asset.glb itself, no pose_NNN.f32):
+
+    cases/<id>/poses/deformed_NNN.f32  (V, 3) p': the anchor vertices as skinning/morphing output
+                                       them (skinned: the scene's global space)
+    case.json "rig"                    splat_node_matrix M (16, column-major), skinned, ...
+    case.json "poses"[NNN].source      {"kind": "rest"} or {"kind": "animation", "animation": A,
+                                       "time": T}
+
+    Pose NNN in the splat primitive's local space is M^-1 p' for a skinned anchor mesh (do it in
+    double precision), p' for a morph-only one; or sample the asset's animation A at time T
+    (weights normalized per vertex), then M^-1. Remap that, dump pose_NNN as below.
+
 Render cases (listed under `render_cases` in suite.json, the render level):
 
     cases/<id>/case.json               manifest (kind "render"): frames (deformation, camera), thresholds
@@ -444,7 +485,7 @@ Remap cases:
       or rest.rotation (N, 4) unit quaternion x, y, z, w  +  rest.scale (N, 3) linear
     rest.opacity     (N,)    imported opacity (linear)
     rest.sh          (N, K, 3) imported SH coefficients, coefficient-major
-    pose_NNN.means   (N, 3)  means after remapping onto poses/pose_NNN.f32
+    pose_NNN.means   (N, 3)  means after remapping onto poses/pose_NNN.f32 (rig: pose NNN)
     pose_NNN.cov     (N, 6)  covariances after that remap
       or pose_NNN.rotation (N, 4) + pose_NNN.scale (N, 3)
     posed.opacity    (N,)    opacity the splats carry after the last pose
@@ -488,10 +529,16 @@ def export_suite(directory: str | os.PathLike) -> dict:
                    json.dumps(manifest, indent=1).encode("utf-8"))
             entries.append({"id": case.id, "kind": "remap", "tags": case.tags,
                             "path": f"cases/{case.id}"})
+        for case in rig_defs.rig_cases():
+            manifest = _export_remap(case, tmp / "cases" / case.id)
+            _write(tmp / "cases" / case.id / "case.json",
+                   json.dumps(manifest, indent=1).encode("utf-8"))
+            entries.append({"id": case.id, "kind": "rig", "tags": case.tags,
+                            "path": f"cases/{case.id}"})
         cache: dict = {}
         scratch = tmp / ".bases"
         scratch.mkdir()
-        for invalid in invalid_defs.invalid_cases():
+        for invalid in invalid_defs.invalid_cases() + rig_defs.rig_invalid_cases():
             manifest = _export_invalid(invalid, tmp / "cases" / invalid.id, cache, scratch)
             _write(tmp / "cases" / invalid.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))
@@ -507,6 +554,7 @@ def export_suite(directory: str | os.PathLike) -> dict:
             "layout": "LAYOUT.md",
             "guide": "spec/conformance.md of gsverse-format",
             "counts": {"remap": sum(e["kind"] == "remap" for e in entries),
+                       "rig": sum(e["kind"] == "rig" for e in entries),
                        "invalid": sum(e["kind"] == "invalid" for e in entries),
                        "render": len(render_entries)},
             "cases": entries,

@@ -5,6 +5,8 @@ writes ``refused`` when the importer rejects it), dumps the imported rest pose, 
 pose in ``poses/`` to the anchor mesh and dumps the remapped means and covariances, then dumps
 the opacity and SH the splats carry after the last pose. ``spec/conformance.md`` gives the
 layout; :func:`run_plugin` is the same loop in Python for implementations callable from here.
+The poses of a rig case are the deformed vertices p′ brought into splat-local space by M⁻¹, or
+the asset's animation sampled by the implementation (:func:`pose_vertices`).
 
 An implementation is an object with the methods of :class:`Plugin`. Three are provided:
 
@@ -31,9 +33,11 @@ from ..model import Anchoring, GamesAnchors, LocalAnchors, TriangleMesh
 from ..remapping import reference
 from .glb import unpack_glb
 from .minimal_reader import Raw, Refused, dequantize, derive_local, face_index, read_anchored_glb
+from .rig_poses import sample_rig, splat_local
 
 __all__ = ["Plugin", "Refused", "run_plugin", "write_array", "ReferencePlugin", "FastPlugin",
-           "RawReferencePlugin", "cov6", "suite_cases", "read_asset"]
+           "RawReferencePlugin", "cov6", "suite_cases", "read_asset", "pose_vertices",
+           "RIG_FAULTS"]
 
 _COV6 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 _KHR = "KHR_gaussian_splatting"
@@ -51,7 +55,8 @@ class Plugin(Protocol):
     ``rest`` and ``apply_pose`` return a dict with ``means`` and either ``cov`` (N, 6) or
     ``rotation`` (N, 4, xyzw) and ``scale`` (N, 3); ``rest`` and ``splat_data`` also return
     ``opacity`` (N,) and ``sh`` (N, K, 3). float32 arrays are dumped as ``.f32``, others as
-    ``.f64``.
+    ``.f64``. An optional ``rig_pose(folder, manifest, p)`` poses a rig case itself (sampled,
+    or M⁻¹ of its own); without it :func:`pose_vertices` does M⁻¹ in float64.
     """
 
     def load(self, asset_path: str) -> None: ...          # raises Refused
@@ -110,12 +115,27 @@ def run_plugin(suite_dir: str | os.PathLike, results_dir: str | os.PathLike,
             continue
         try:
             _dump(out, "rest", plugin.rest())
-            for p, pose_file in enumerate(manifest.get("files", {}).get("poses", [])):
-                verts = np.fromfile(folder / pose_file, dtype="<f4").reshape(-1, 3)
-                _dump(out, f"pose_{p:03d}", plugin.apply_pose(verts))
+            for p in range(len(manifest.get("poses", []))):
+                _dump(out, f"pose_{p:03d}", plugin.apply_pose(pose_vertices(plugin, folder,
+                                                                            manifest, p)))
             _dump(out, "posed", plugin.splat_data())
         except Exception as err:  # the implementation failed on this case: record, go on
             (out / "error").write_text(f"{type(err).__name__}: {err}\n", encoding="utf-8")
+
+
+def pose_vertices(plugin: object, folder: Path, manifest: dict, p: int) -> np.ndarray:
+    """The anchor vertices of pose ``p`` in the splat primitive's local space: the pose file
+    of a remap case; for a rig case (spec/conformance.md §Rig cases) the plugin's own
+    ``rig_pose(folder, manifest, p)`` when it has one, else the deformed file p′ brought into
+    splat-local space by M⁻¹ in float64 (:func:`.rig_poses.splat_local`)."""
+    files = manifest.get("files", {})
+    if manifest.get("kind") != "rig":
+        return np.fromfile(folder / files["poses"][p], dtype="<f4").reshape(-1, 3)
+    own = getattr(plugin, "rig_pose", None)
+    if own is not None:
+        return own(folder, manifest, p)
+    deformed = np.fromfile(folder / files["deformed"][p], dtype="<f4").reshape(-1, 3)
+    return splat_local(deformed, manifest["rig"])
 
 
 # --------------------------------------------------------------------------- library plugins
@@ -190,16 +210,42 @@ def _require_document_rules(asset_path: str) -> None:
                               f"nodes ({', '.join(map(str, users))}); at most one is allowed")
 
 
+#: Deliberately broken rig steps (:class:`ReferencePlugin` ``fault``): remap p′ without M⁻¹,
+#: skin with the weights as stored (no normalization).
+RIG_FAULTS = ("skip-inverse-node", "raw-weights")
+
+
 class ReferencePlugin:
     """The library as a plugin: ``read_gltf`` and the float64 reference remap.
 
     ``form="cov"`` dumps covariances, ``"rotscale"`` the reference's rotation/scale pairs.
+    Rig cases: ``rig="files"`` reads the deformed vertices p′ and does M⁻¹ in float64,
+    ``"sample"`` samples the asset's animation with :mod:`gsverse_format.poses.gltf_animation`
+    at the pose's time (spec steps 1–3). ``fault`` (one of :data:`RIG_FAULTS`) breaks a rig
+    step on purpose; ``raw-weights`` needs ``rig="sample"``.
     """
 
     name = "gsverse_format.remapping.reference (numpy, float64)"
 
-    def __init__(self, form: str = "cov") -> None:
+    def __init__(self, form: str = "cov", *, rig: str = "files", fault: str | None = None) -> None:
+        if rig not in ("files", "sample") or fault not in (None,) + RIG_FAULTS:
+            raise ValueError(f"rig {rig!r} / fault {fault!r}")
+        if fault == "raw-weights" and rig != "sample":
+            raise ValueError("the raw-weights fault samples the animation: use rig='sample'")
         self.form = form
+        self.rig_source = rig
+        self.fault = fault
+
+    def rig_pose(self, folder: Path, manifest: dict, p: int) -> np.ndarray:
+        """Pose ``p`` of a rig case in splat-local space (see the class docstring)."""
+        skip = self.fault == "skip-inverse-node"
+        if self.rig_source == "sample":
+            glb = (folder / manifest["files"]["asset"]).read_bytes()
+            raw = (lambda w: np.asarray(w, np.float64)) if self.fault == "raw-weights" else None
+            return sample_rig(glb, [manifest["poses"][p]["source"]], weights=raw,
+                              inverse=not skip)[0][1]
+        deformed = np.fromfile(folder / manifest["files"]["deformed"][p], "<f4").reshape(-1, 3)
+        return deformed.astype(np.float64) if skip else splat_local(deformed, manifest["rig"])
 
     def load(self, asset_path: str) -> None:
         try:
@@ -237,8 +283,9 @@ class FastPlugin(ReferencePlugin):
 
     name = "gsverse_format.remapping.fast (float32)"
 
-    def __init__(self, backend: str = "numba", rotations: bool = False) -> None:
-        super().__init__()
+    def __init__(self, backend: str = "numba", rotations: bool = False, *, rig: str = "files",
+                 fault: str | None = None) -> None:
+        super().__init__(rig=rig, fault=fault)
         self.backend = backend
         self.rotations = rotations
 

@@ -25,7 +25,7 @@ from ..poses.gltf_animation import GltfAnimation, Instance
 from .glb import (FLOAT, UNSIGNED_BYTE, UNSIGNED_SHORT, BufferBuilder, accessor_bytes, pack_glb,
                   unpack_glb)
 
-__all__ = ["tube", "skinned_tube", "sample_skin"]
+__all__ = ["tube", "skinned_tube", "sample_skin", "float_accessor"]
 
 
 def tube(rings: int, segments: int, radius: float, height: float,
@@ -140,7 +140,9 @@ def skinned_tube(rings: int = 7, segments: int = 8, radius: float = 0.2,
 
 # ------------------------------------------------------------------------------ sampling
 
-def _float_accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
+def float_accessor(doc: dict, blob: bytes, index: int) -> np.ndarray:
+    """Accessor ``index`` of a GLB's ``doc``/``blob`` as float64 (count, components),
+    normalized integers dequantized (glTF 2.0 §3.11): the :data:`AccessorFn` of the suite."""
     acc = doc["accessors"][index]
     raw = accessor_bytes(doc, blob, index).astype(np.float64)
     if acc.get("normalized"):
@@ -158,7 +160,7 @@ def sample_skin(glb: bytes, t: float, *, animation: int = 0, node: int | None = 
     """
     doc, blob = unpack_glb(glb)
     nodes = doc["nodes"]
-    anim = GltfAnimation(doc, lambda i: _float_accessor(doc, blob, i),
+    anim = GltfAnimation(doc, lambda i: float_accessor(doc, blob, i),
                          animation if doc.get("animations") else None)
     if node is None:
         node = next(i for i, n in enumerate(nodes) if "mesh" in n and "skin" in n)

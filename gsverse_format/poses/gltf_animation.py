@@ -23,6 +23,10 @@ reader, the conformance suite passes its own GLB bytes.
   as three.js does and spec/README.md §Animated anchor meshes prescribes. As glTF prescribes,
   the transform of the node that instantiates a skinned mesh is not applied. A mesh without a
   skin is placed by its node's global transform.
+* The anchor mesh of an anchored asset (:meth:`GltfAnimation.anchor_pose`, spec/README.md
+  §Animated anchor meshes steps 1–3): the morphed and skinned vertices p′ (the anchor node's
+  own transform ignored, skinned or not), then M⁻¹ · p′ for a skinned mesh, M the global matrix
+  of the splat node at the same time; a morph-only mesh's p′ is already splat-local.
 """
 from __future__ import annotations
 
@@ -118,10 +122,15 @@ class GltfAnimation:
 
     ``doc`` is the JSON document, ``accessor`` an :data:`AccessorFn`; ``animation`` an index,
     a name, or None for no animation (the rest pose: node values and default weights).
+    ``weights`` turns a skinned primitive's (V, n) skin weights into the ones blended; the
+    default is the spec's normalization (:func:`gsverse_format.rig.normalized_weights`); the
+    conformance suite passes the identity to build an engine that skips it.
     """
 
-    def __init__(self, doc: dict, accessor: AccessorFn, animation: int | str | None = 0):
+    def __init__(self, doc: dict, accessor: AccessorFn, animation: int | str | None = 0, *,
+                 weights: Callable[[np.ndarray], np.ndarray] | None = None):
         self.doc = doc
+        self.blend_weights = weights or (lambda w: normalized_weights(w).weights)
         self.accessor = accessor
         self.nodes: list[dict] = list(doc.get("nodes") or [])
         anims = list(doc.get("animations") or [])
@@ -281,7 +290,7 @@ class GltfAnimation:
         if n == 0:
             raise FormatError(f"skinned mesh {inst.mesh} has no JOINTS_0/WEIGHTS_0")
         jn = np.concatenate(sets_j, axis=1)
-        wt = normalized_weights(np.concatenate(sets_w, axis=1)).weights
+        wt = self.blend_weights(np.concatenate(sets_w, axis=1))
         out = np.zeros((len(v), 4))
         for k in range(jn.shape[1]):
             out += wt[:, k:k + 1] * np.einsum("nij,nj->ni", mats[jn[:, k]], homo)
@@ -304,6 +313,38 @@ class GltfAnimation:
         if not parts:
             raise FormatError("the file has no triangle primitives in its scene")
         return np.concatenate(parts)
+
+    def node_matrix(self, node: int, t: float | None = None) -> np.ndarray:
+        """The global 4×4 matrix (float64) of ``node`` at time ``t`` (None: the nodes' own
+        values); :class:`FormatError` when no scene reaches it."""
+        world, _ = self._traverse(self._overrides(float(t)) if t is not None else {})
+        if node not in world:
+            raise FormatError(f"node {node} is not in the scene")
+        return world[node]
+
+    def anchor_pose(self, t: float | None, inst: Instance,
+                    splat_node: int | None) -> tuple[np.ndarray, np.ndarray]:
+        """The anchor mesh ``inst`` at time ``t`` (None: the rest pose), spec/README.md
+        §Animated anchor meshes: (p′, vertices in the splat primitive's local space), (V, 3)
+        float64 each. p′ is morphed and, when the node has a skin, skinned (scene global
+        space); the anchor node's own transform is never applied. The local vertices are
+        M⁻¹ · p′ for a skinned mesh (M the global matrix of ``splat_node`` at ``t``; the
+        identity for None) and p′ for a morph-only one. :class:`FormatError` for a singular M."""
+        overrides = self._overrides(float(t)) if t is not None else {}
+        world, _ = self._traverse(overrides)
+        v = self._morphed(inst, overrides.get(inst.node, {}).get("weights"))
+        if self.nodes[inst.node].get("skin") is None:
+            return v, v
+        deformed = self._skinned(inst, v, world)
+        if splat_node is None:
+            return deformed, deformed
+        m = world.get(splat_node)
+        if m is None:
+            raise FormatError(f"the splat node {splat_node} is not in the scene")
+        if not (np.all(np.isfinite(m)) and abs(np.linalg.det(m[:3, :3])) > 0.0):
+            raise FormatError(f"the global matrix of the splat node {splat_node} is singular")
+        inv = np.linalg.inv(m)
+        return deformed, deformed @ inv[:3, :3].T + inv[:3, 3]
 
     def animates(self, instances: list[Instance]) -> bool:
         """Whether any of ``instances`` has a skin or morph targets."""

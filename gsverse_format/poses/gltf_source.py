@@ -10,6 +10,11 @@ of the default scene concatenated in the order in which ``gsverse-convert --mesh
 reads them (:func:`gsverse_format.io.mesh.read_mesh`), so an asset converted with
 ``--mesh character.glb`` is posed by ``--source character.glb``.
 
+An anchored asset's own anchor mesh is posed as spec/README.md §Animated anchor meshes says
+(:meth:`GltfAnimation.anchor_pose`): morphed and skinned, the anchor node's transform ignored,
+skinned vertices brought into the splat primitive's local space by M⁻¹ (M the global matrix of
+the node that instantiates the splat mesh anchored to it).
+
 Matching (:meth:`GltfSource.match`): the anchor mesh must have as many vertices, and its rest
 positions must be the source's rest positions (what glTF draws with the nodes' own values and
 the default morph weights: a skinned primitive skinned, not placed by its node's transform;
@@ -27,7 +32,7 @@ from ..errors import FormatError, GsverseError
 from .gltf_animation import GltfAnimation, Instance
 
 __all__ = ["GltfSource", "open_gltf_source", "anchor_instances", "anchor_primitives",
-           "MATCH_TOLERANCE"]
+           "splat_nodes", "MATCH_TOLERANCE"]
 
 #: Rest positions match when no vertex differs by more than this × the bounding-box diagonal.
 MATCH_TOLERANCE = 1e-4
@@ -66,6 +71,24 @@ def anchor_instances(anim: GltfAnimation) -> list[Instance]:
     return out
 
 
+def splat_nodes(doc: dict, instances: list[Instance]) -> list[int | None]:
+    """Per anchor instance, the node instantiating the first splat mesh anchored to its mesh
+    (None when no node does: the splat-local space is then the scene's)."""
+    out: list[int | None] = []
+    nodes = doc.get("nodes") or []
+    for inst in instances:
+        found = None
+        for m, mesh in enumerate(doc.get("meshes") or []):
+            for prim in mesh.get("primitives", []):
+                ext = (prim.get("extensions") or {}).get(_KHR, {}).get("extensions", {}).get(
+                    _ANCHOR)
+                if isinstance(ext, dict) and ext.get("mesh") == inst.mesh and found is None:
+                    users = [i for i, n in enumerate(nodes) if n.get("mesh") == m]
+                    found = users[0] if users else None
+        out.append(found)
+    return out
+
+
 @dataclass
 class GltfSource:
     """Poses of a glTF file's triangle primitives: ``at(t)`` (V, 3) in the file's space."""
@@ -75,6 +98,15 @@ class GltfSource:
     instances: list[Instance]
     #: rotation into the anchor mesh's frame, set by :meth:`match`
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    #: an anchored asset's own anchor meshes: the splat node of each instance (spec steps
+    #: 1–3, :meth:`GltfAnimation.anchor_pose`); None for a plain glTF file's meshes
+    splat_nodes: list[int | None] | None = None
+
+    def _vertices(self, t: float | None) -> np.ndarray:
+        if self.splat_nodes is None:
+            return self.animation.vertices(t, self.instances)
+        return np.concatenate([self.animation.anchor_pose(t, inst, node)[1]
+                               for inst, node in zip(self.instances, self.splat_nodes)])
 
     @property
     def vertex_count(self) -> int:
@@ -84,7 +116,7 @@ class GltfSource:
         return self.animation.duration()
 
     def rest_pose(self) -> np.ndarray:
-        return self.animation.vertices(None, self.instances)
+        return self._vertices(None)
 
     def match(self, rest: np.ndarray, label: str = "the anchor mesh") -> None:
         """Check that ``rest`` (V, 3) is this source's rest pose (see the module docstring)
@@ -113,7 +145,7 @@ class GltfSource:
     def at(self, t: float) -> np.ndarray:
         """Posed vertices (V, 3) float64 at time ``t`` (s), in the anchor mesh's frame."""
         try:
-            return self.animation.vertices(t, self.instances) @ self.rotation.T
+            return self._vertices(t) @ self.rotation.T
         except GsverseError as err:
             raise FormatError(err.cause, self.path) from None
         except (KeyError, IndexError, TypeError, ValueError) as err:
@@ -150,7 +182,8 @@ def open_gltf_source(path: str | os.PathLike, animation: int | str | None = 0, *
             raise FormatError("the file has no triangle primitives in its scene")
         if not anim.animates(instances) and anim.animation is None:
             raise FormatError("its meshes have no skin, no morph targets and no animation")
-        source = GltfSource(spath, anim, instances)
+        source = GltfSource(spath, anim, instances,
+                            splat_nodes=splat_nodes(anim.doc, instances) if anchored else None)
         source.rest_pose()   # reads and checks every accessor now, not at the first pose
         return source
     except GsverseError as err:

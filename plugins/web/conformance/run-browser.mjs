@@ -7,8 +7,10 @@
 // imports every case with the PlayCanvas plugin, remaps every pose on the GPU with the same
 // remap chunk that renders, reads the float32 results back and writes the dump layout of
 // spec/conformance.md (rotation + scale dumps) into RESULTS, with `refused` for refusals and
-// RESULTS/harness.json naming the engine and the WebGL renderer. --fault NAME builds a
-// deliberately broken shader (see src/playcanvas/shader.js FAULTS). --backend webgpu runs the
+// RESULTS/harness.json naming the engine and the WebGL renderer. The poses of a rig case are
+// the asset's own animation sampled in the page (src/animation.js). --fault NAME builds a
+// deliberately broken shader (see src/playcanvas/shader.js FAULTS) or animation
+// (ANIMATION_FAULTS of src/animation.js). --backend webgpu runs the
 // WGSL twin on PlayCanvas's WebGPU device (Chromium's WebGPU, SwiftShader adapter here). Then
 // `gsverse-conformance check SUITE RESULTS` judges it.
 // The render level (the suite's `render_cases`): every frame of every render case is rendered

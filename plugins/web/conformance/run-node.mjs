@@ -1,19 +1,24 @@
 #!/usr/bin/env node
 // The conformance harness of the CPU path, in Node:
-//   node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale]
+//   node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale] [--fault NAME]
 // imports every case of SUITE/suite.json with readAnchoredGlb, remaps every pose with
 // remapCpu and writes the dump layout of spec/conformance.md into RESULTS; then
-// `gsverse-conformance check SUITE RESULTS` judges it. --rotation-scale dumps rotation + scale
-// pairs instead of covariances. --json prints a JSON summary instead of a line per case.
+// `gsverse-conformance check SUITE RESULTS` judges it. The poses of a rig case come from the
+// asset's own animation, sampled by src/animation.js (conformance/rig-pose.js). --rotation-scale
+// dumps rotation + scale pairs instead of covariances. --fault NAME breaks the animation on
+// purpose (ANIMATION_FAULTS of src/animation.js). --json prints a JSON summary instead of a
+// line per case.
 
 import { readFileSync } from 'node:fs';
 import { join, resolve } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 import { readAnchoredGlb, AnchorError } from '../src/anchor.js';
+import { readAnchorAnimation } from '../src/animation.js';
 import { computeRest } from '../src/rest.js';
 import { remapCpu, remapCpuRotationScale } from '../src/remap-cpu.js';
 import { matchesGlob, readF32, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
+import { rigPose } from './rig-pose.js';
 
 /** @typedef {import('./dump.mjs').CaseResults} CaseResults */
 /** @typedef {import('./dump.mjs').DumpArrays} DumpArrays */
@@ -22,14 +27,20 @@ import { matchesGlob, readF32, readSuite, writeCaseResults, writeHarness } from 
  * Run the CPU path over one case.
  * @param {string} folder  the case folder
  * @param {any} manifest
- * @param {{rotationScale?: boolean}} [options]
+ * @param {{rotationScale?: boolean, fault?: string|null}} [options]
  * @returns {CaseResults & {code?: string}}
  */
 export function runCase(folder, manifest, options = {}) {
     let glb;
+    /** @type {import('../src/animation.js').AnchorAnimation|null} */
+    let animation = null;
+    const rig = manifest.kind === 'rig';
     try {
         const bytes = readFileSync(join(folder, manifest.files.asset));
         glb = readAnchoredGlb(bytes, { name: manifest.files.asset });
+        if (rig && glb.anchored.length === 1) {
+            animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: options.fault ?? null });
+        }
     } catch (err) {
         if (err instanceof AnchorError) return { refused: `${err.code}: ${err.message}`, code: err.code };
         return { error: `import failed: ${err instanceof Error ? err.stack : String(err)}` };
@@ -45,8 +56,9 @@ export function runCase(folder, manifest, options = {}) {
         };
         const rest = computeRest(prim);
         results.poses = [];
-        for (const file of manifest.files.poses || []) {
-            const vertices = readF32(join(folder, file));
+        const count = rig ? manifest.poses.length : (manifest.files.poses || []).length;
+        for (let p = 0; p < count; ++p) {
+            const vertices = rig ? rigPose(animation, manifest.poses[p].source) : readF32(join(folder, manifest.files.poses[p]));
             if (options.rotationScale) {
                 const r = remapCpuRotationScale(prim, rest, vertices);
                 results.poses.push({ means: r.means, rotation: r.rotations, scale: r.scales });
@@ -67,7 +79,7 @@ export function runCase(folder, manifest, options = {}) {
  * Run every case of a suite and write RESULTS.
  * @param {string} suiteDir
  * @param {string} resultsDir
- * @param {{rotationScale?: boolean, cases?: string, log?: (line: string) => void}} [options]
+ * @param {{rotationScale?: boolean, fault?: string|null, cases?: string, log?: (line: string) => void}} [options]
  * @returns {{id: string, kind: string, outcome: string, code?: string, expected?: string}[]}
  */
 export function runSuite(suiteDir, resultsDir, options = {}) {
@@ -80,6 +92,7 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
         backend: 'CPU (JavaScript)',
         precision: 'binary64 arithmetic (rest and per-frame), float32 outputs',
         dump: options.rotationScale ? 'rotation+scale' : 'cov',
+        fault: options.fault || null,
     });
     const log = options.log || (() => {});
     /** @type {{id: string, kind: string, outcome: string, code?: string, expected?: string}[]} */
@@ -100,18 +113,21 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
 
 function main() {
     const args = process.argv.slice(2);
-    const flags = new Set(args.filter((a) => a.startsWith('--') && a !== '--cases'));
+    const flags = new Set(args.filter((a) => a.startsWith('--') && a !== '--cases' && a !== '--fault'));
     const casesAt = args.indexOf('--cases');
     const cases = casesAt >= 0 ? args[casesAt + 1] : undefined;
-    const positional = args.filter((a, i) => !a.startsWith('--') && (casesAt < 0 || i !== casesAt + 1));
+    const faultAt = args.indexOf('--fault');
+    const fault = faultAt >= 0 ? args[faultAt + 1] : undefined;
+    const positional = args.filter((a, i) => !a.startsWith('--') && (casesAt < 0 || i !== casesAt + 1) && (faultAt < 0 || i !== faultAt + 1));
     if (positional.length !== 2) {
-        process.stderr.write('usage: node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale]\n');
+        process.stderr.write('usage: node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale] [--fault NAME]\n');
         process.exit(2);
     }
     const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
     const json = flags.has('--json');
     const summary = runSuite(suiteDir, resultsDir, {
         rotationScale: flags.has('--rotation-scale'),
+        fault: fault || null,
         cases,
         log: json ? undefined : (line) => process.stdout.write(`${line}\n`),
     });

@@ -116,9 +116,24 @@ function isIdentity(m) {
  * `skinned`, `morphed`, `vertexCount`, `targetCount`, `jointCount`, `node`, `splatNode`,
  * `sample()` and `rest()`; the other fields are the precomputed state `sample` works on.
  */
+/**
+ * Deliberately broken variants (testing only: the conformance suite's rig cases must catch
+ * them): `skip-inverse-node` leaves skinned vertices in the scene's global space (no M⁻¹),
+ * `raw-weights` skins with the weights as stored (no normalization).
+ */
+export const ANIMATION_FAULTS = Object.freeze(['skip-inverse-node', 'raw-weights']);
+
 export class AnchorAnimation {
-    /** @param {GltfDocument} doc @param {AnchoredPrimitive} prim @param {string} name */
-    constructor(doc, prim, name) {
+    /**
+     * @param {GltfDocument} doc @param {AnchoredPrimitive} prim @param {string} name
+     * @param {string|null} [fault]  one of ANIMATION_FAULTS (testing only)
+     */
+    constructor(doc, prim, name, fault = null) {
+        if (fault !== null && !ANIMATION_FAULTS.includes(fault)) {
+            throw new Error(`unknown animation fault '${fault}' (known: ${ANIMATION_FAULTS.join(', ')})`);
+        }
+        /** @type {string|null} */
+        this.fault = fault;
         const json = doc.json;
         const anchor = prim.anchorMesh;
         const nodes = Array.isArray(json.nodes) ? json.nodes : [];
@@ -310,9 +325,11 @@ export class AnchorAnimation {
         this.influenceJoint = new Uint32Array(count);
         this.influenceWeight = new Float64Array(count);
         let e = 0;
+        const raw = this.fault === 'raw-weights';
         for (let v = 0; v < V; ++v) {
             this.offsets[v] = e;
             if (!(sums[v] > 0)) {
+                if (raw) continue;
                 this.influenceJoint[e] = sets[0].joints[4 * v];
                 this.influenceWeight[e++] = 1;
                 continue;
@@ -321,7 +338,7 @@ export class AnchorAnimation {
                 for (let c = 4 * v; c < 4 * v + 4; ++c) {
                     if (weights[c] === 0) continue;
                     this.influenceJoint[e] = joints[c];
-                    this.influenceWeight[e++] = weights[c] / sums[v];
+                    this.influenceWeight[e++] = raw ? weights[c] : weights[c] / sums[v];
                 }
             }
         }
@@ -472,7 +489,8 @@ export class AnchorAnimation {
         const iw = this.influenceWeight;
         const J = this.jointMatrices;
         const M = this.splatInverse;
-        const placed = skinned && !isIdentity(M);   // M⁻¹ = I (the writer's layout) changes nothing
+        // M⁻¹ = I (the writer's layout) changes nothing
+        const placed = skinned && !isIdentity(M) && this.fault !== 'skip-inverse-node';
         for (let v = 0, p = 0; v < V; ++v, p += 3) {
             let x = base[p], y = base[p + 1], z = base[p + 2];
             for (let a = 0; a < nActive; ++a) {
@@ -551,7 +569,8 @@ export class AnchorAnimation {
  * naming the file).
  * @param {Uint8Array|ArrayBuffer|GltfDocument} input  the file's bytes, or parseGltf of them
  * @param {AnchoredPrimitive} prim
- * @param {{name?: string}} [options]  name: the file name used in messages
+ * @param {{name?: string, fault?: string|null}} [options]  name: the file name used in
+ *   messages; fault: one of ANIMATION_FAULTS (testing only)
  * @returns {AnchorAnimation|null}
  */
 export function readAnchorAnimation(input, prim, options = {}) {
@@ -568,7 +587,7 @@ export function readAnchorAnimation(input, prim, options = {}) {
         }
         const skinned = node.skin !== undefined && node.skin !== null;
         if (!skinned && !(Array.isArray(aprim.targets) && aprim.targets.length)) return null;
-        return new AnchorAnimation(doc, prim, name);
+        return new AnchorAnimation(doc, prim, name, options.fault ?? null);
     } catch (err) {
         if (err instanceof AnchorError || err instanceof GltfError) throw new AnchorError(err.code, `${name}: ${err.message}`);
         throw err;

@@ -48,7 +48,7 @@ test('GPU remap in Chromium passes the suite; broken shaders fail exactly their 
         }
         const index = JSON.parse(readFileSync(join(suite, 'suite.json'), 'utf8'));
         /** @param {string} tag */
-        const remapWith = (tag) => index.cases.filter((/** @type {any} */ c) => c.kind === 'remap' && c.tags.includes(tag))
+        const remapWith = (tag) => index.cases.filter((/** @type {any} */ c) => (c.kind === 'remap' || c.kind === 'rig') && c.tags.includes(tag))
             .map((/** @type {any} */ c) => c.id).sort();
 
         await t.test('every case passes', async () => {

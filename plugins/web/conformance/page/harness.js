@@ -2,11 +2,15 @@
 // PlayCanvas application on WebGL2; every case is imported with loadAnchoredAsset (engine
 // container loading + our reader), each pose is remapped on the GPU by the same remap chunk
 // as the render (RemapProbe: the engine's GSplatProcessor over the splat streams), and the
-// float32 results are read back from the GPU. Arrays go back to Node as base64.
+// float32 results are read back from the GPU. Arrays go back to Node as base64. The poses of
+// a rig case are the asset's own animation sampled in the page (src/animation.js: morph,
+// skin, M⁻¹; conformance/rig-pose.js) at each pose's time.
 
 import * as pc from 'playcanvas';
 import { loadAnchoredAsset } from '../../src/playcanvas/index.js';
 import { RemapProbe } from '../../src/playcanvas/probe.js';
+import { ANIMATION_FAULTS, readAnchorAnimation } from '../../src/animation.js';
+import { rigPose } from '../rig-pose.js';
 import { describeBackend, fetchBytes, startApp, toBase64 } from './engine-page.js';
 
 /** @type {pc.Application|null} */
@@ -25,17 +29,22 @@ async function init(options = {}) {
 /**
  * Import one case, remap every pose on the GPU, read back.
  * @param {string} path  the case folder relative to the suite, e.g. cases/local-affine-stretch
- * @param {{fault?: string|null}} options
+ * @param {{fault?: string|null}} options  fault: a shader fault (src/playcanvas/shader.js) or
+ *   an animation fault (ANIMATION_FAULTS of src/animation.js)
  */
 async function runCase(path, options) {
     if (!app) throw new Error('init() first');
     const base = `/suite/${path}/`;
     const manifest = await (await fetch(`${base}case.json`)).json();
     const bytes = await fetchBytes(base + manifest.files.asset);
+    const fault = options.fault ?? null;
+    const animationFault = fault !== null && ANIMATION_FAULTS.includes(fault) ? fault : null;
+    const shaderFault = animationFault ? null : fault;
+    const rig = manifest.kind === 'rig';
     const t0 = performance.now();
     let loaded;
     try {
-        loaded = await loadAnchoredAsset(app, bytes, { name: manifest.files.asset, parent: null, fault: options.fault ?? null });
+        loaded = await loadAnchoredAsset(app, bytes, { name: manifest.files.asset, parent: null, fault: shaderFault });
     } catch (err) {
         const e = /** @type {any} */ (err);
         if (e && e.name === 'AnchorError') return { refused: `${e.code}: ${e.message}`, code: e.code };
@@ -53,11 +62,15 @@ async function runCase(path, options) {
             means: toBase64(prim.rest.means), rotation: toBase64(prim.rest.rotations), scale: toBase64(prim.rest.scales),
             opacity: toBase64(prim.rest.opacity), sh: toBase64(prim.rest.sh),
         };
-        probe = new RemapProbe(splat.gpu, { fault: options.fault ?? null });
+        probe = new RemapProbe(splat.gpu, { fault: shaderFault });
+        const animation = !rig ? null : animationFault
+            ? readAnchorAnimation(bytes, prim, { name: manifest.files.asset, fault: animationFault }) : splat.animation;
         out.poses = [];
         let gpuMs = 0;
-        for (const file of manifest.files.poses) {
-            const vertices = new Float32Array((await fetchBytes(base + file)).buffer);
+        const count = rig ? manifest.poses.length : manifest.files.poses.length;
+        for (let p = 0; p < count; ++p) {
+            const vertices = rig ? rigPose(animation, manifest.poses[p].source)
+                : new Float32Array((await fetchBytes(base + manifest.files.poses[p])).buffer);
             const t1 = performance.now();
             probe.run(vertices);
             const r = await probe.read();
