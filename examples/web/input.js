@@ -3,10 +3,13 @@
 // Left button on the object: grab the nearest physics vertex (and its neighbourhood) and pull it
 // in the plane facing the camera; the opposite end of the body is held where it is, so the pull
 // stretches it, up to a limit (controls.js, Drag); hold Shift to drag the whole body instead.
+// In a physics scene, left button on a rigid object grabs it (rigid.js, RigidDrag): it follows
+// the pointer and, let go, flies off with the pointer's velocity.
 // Left button elsewhere, or right or middle button: orbit. Wheel: zoom.
 
 import * as pc from 'playcanvas';
 import { Drag } from './controls.js';
+import { RigidDrag } from './rigid.js';
 
 export class OrbitCamera {
     /** @param {pc.Entity} camera */
@@ -71,7 +74,7 @@ export class Grabber {
         this.current = current;
         this.hooks = hooks;
         this.enabled = true;
-        /** @type {null | {drag: Drag, origin: pc.Vec3, normal: pc.Vec3}} */
+        /** @type {null | {drag: Drag|RigidDrag, origin: pc.Vec3, normal: pc.Vec3}} */
         this.grab = null;
         /** @type {null | {x: number, y: number}} */
         this.orbiting = null;
@@ -110,6 +113,27 @@ export class Grabber {
                 }
             }
         }
+        // a dynamic rigid body under the cursor (inside its hull's projected box), grabbed at the
+        // depth of its centre, if it is in front of the soft vertex found
+        for (const { rigid } of asset.rigids ?? []) {
+            if (rigid.kind !== 'rigid') continue;
+            const p = rigid.worldPoints();
+            let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity, cz = 0, c = [0, 0, 0];
+            for (let i = 0; i < p.length; i += 3) {
+                v.set(p[i], p[i + 1], p[i + 2]);
+                cam.worldToScreen(v, s);
+                x0 = Math.min(x0, s.x); x1 = Math.max(x1, s.x); y0 = Math.min(y0, s.y); y1 = Math.max(y1, s.y);
+                for (let k = 0; k < 3; k++) c[k] += 3 * p[i + k] / p.length;
+            }
+            cz = (c[0] - eye.x) * fwd.x + (c[1] - eye.y) * fwd.y + (c[2] - eye.z) * fwd.z;
+            if (cz <= 0 || x < x0 || x > x1 || y < y0 || y > y1 || (best && bestZ < cz)) continue;
+            const a = cam.screenToWorld(x, y, cam.nearClip), b2 = cam.screenToWorld(x, y, cam.farClip);
+            const dir = b2.clone().sub(a), denom = dir.dot(fwd);
+            const t = (cz - a.clone().sub(eye).dot(fwd)) / denom;
+            const hit = a.add(dir.mulScalar(t));
+            best = { rigid, point: [hit.x, hit.y, hit.z] };
+            bestZ = cz;
+        }
         return best;
     }
 
@@ -129,6 +153,11 @@ export class Grabber {
         const hit = this.pick(x, y);
         if (!hit) return false;
         this.hooks.onGrab?.();
+        if ('rigid' in hit) {
+            const q = hit.point;
+            this.grab = { drag: new RigidDrag(hit.rigid, q), origin: new pc.Vec3(q[0], q[1], q[2]), normal: this.camera.forward.clone() };
+            return true;
+        }
         const { soft, index, positions: p } = hit;
         const drag = new Drag(soft, index, { moveWhole });
         const origin = new pc.Vec3(p[3 * index], p[3 * index + 1], p[3 * index + 2]);

@@ -2,14 +2,15 @@
 // (splats remapped on the GPU), turns each anchor mesh into a Jolt soft body, and lets the user
 // stretch, twist, shake and drop it. `window.gsverseDemo` is a scripted API for tests.
 //
-// URL parameters: ?asset=URL (default: the asset the server names in /config.json),
+// URL parameters: ?asset=URL (default: the asset the server names in /config.json; the shipped
+// physics scene is ?asset=scene.glb),
 // ?test (fixed front camera, plain background, no panel or ground, physics paused: for
 // deterministic screenshots), ?physics=surface and ?budget=N (the physics mesh, see physmesh.js).
 
 import * as pc from 'playcanvas';
 import initJolt from 'jolt-physics';
 import { RemapProbe } from '@gsverse/web/playcanvas/probe.js';
-import { PhysicsWorld, axisIndex, DEFAULT_BUDGET } from './physics.js';
+import { PhysicsWorld, axisIndex, bounds, DEFAULT_BUDGET } from './physics.js';
 import { DemoAsset } from './scene.js';
 import { OrbitCamera, Grabber } from './input.js';
 import { RemapTimer } from './gputimer.js';
@@ -125,7 +126,7 @@ function resetAll() {
     showSliders(1, 0);
     current?.reset();
     if (current && orbit && current.bodies.length) {
-        const c = current.restBounds().center;
+        const c = (current.isScene ? current.sceneRestBounds() : current.restBounds()).center;
         orbit.target.set(c[0], c[1], c[2]);
         orbit.apply();
     }
@@ -188,19 +189,31 @@ function physicsStep() {
 /** Place the camera and the ground for the current asset. */
 function frameAsset() {
     if (!current || !orbit || !world) return;
-    const rb = current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
+    const scene = current.isScene;
+    const rb = scene ? current.sceneRestBounds()
+        : current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
     const size = Math.max(...rb.size) || 1;
     state.axis = /** @type {0|1|2} */ (rb.size.indexOf(Math.max(...rb.size)));
-    const groundY = rb.min[1] - 0.2 * rb.size[1];
-    world.setGround(groundY, 20 * size, [rb.center[0], rb.center[2]]);
-    if (ground) {
-        ground.setPosition(rb.center[0], groundY, rb.center[2]);
-        ground.setLocalScale(20 * size, 1, 20 * size);
+    const box = current.groundBox();
+    if (box) {
+        // the file's ground: its box, and the visible plane on its top face
+        world.setGroundBox(box.center, box.half, box.rotation);
+        if (ground) {
+            ground.setPosition(box.center[0], box.top, box.center[2]);
+            ground.setLocalScale(2 * box.half[0], 1, 2 * box.half[2]);
+        }
+    } else {
+        const groundY = rb.min[1] - 0.2 * rb.size[1];
+        world.setGround(groundY, 20 * size, [rb.center[0], rb.center[2]]);
+        if (ground) {
+            ground.setPosition(rb.center[0], groundY, rb.center[2]);
+            ground.setLocalScale(20 * size, 1, 20 * size);
+        }
     }
     if (TEST) {
         orbit.yaw = 0;
-        orbit.pitch = 0;
-        orbit.frame(rb.center, 1.9 * size);
+        orbit.pitch = scene ? -20 : 0;
+        orbit.frame(rb.center, (scene ? 1.5 : 1.9) * size);
     } else {
         orbit.yaw = 25;
         orbit.pitch = -15;
@@ -263,6 +276,7 @@ function info() {
             physics: b.soft.kind, physicsVertices: b.soft.simCount, grid: b.soft.physics.grid?.cells ?? null, why: b.soft.physics.reason,
             guardTrips: b.soft.guardTrips,
         })) ?? [],
+        objects: objects(),
         axis: 'xyz'[state.axis],
         backend,
         software,
@@ -273,6 +287,27 @@ function info() {
         physicsStepMs: stepMs,
         paused,
     };
+}
+
+/**
+ * The physics objects of a scene now: name, kind, the splat node's world position and rotation,
+ * and the world bounds of its collider hull (rigid kinds) or anchor mesh (soft); the ground's top.
+ */
+function objects() {
+    if (!current || !current.isScene) return null;
+    const out = [];
+    for (const { splat, rigid } of current.rigids) {
+        const p = splat.entity.getPosition(), q = splat.entity.getRotation();
+        const b = rigid.bounds();
+        out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: [p.x, p.y, p.z], rotation: [q.x, q.y, q.z, q.w],
+            min: b.min, max: b.max, velocity: rigid.velocity() });
+    }
+    for (const b of current.bodies) {
+        const p = b.splat.entity.getPosition(), r = bounds(b.soft.readAnchorVertices());
+        out.push({ name: b.splat.entity.name, kind: 'soft', node: b.splat.prim.node, position: [p.x, p.y, p.z], rotation: null,
+            min: r.min, max: r.max, velocity: null });
+    }
+    return { objects: out, groundTop: current.groundBox()?.top ?? null };
 }
 
 /** The stats panel's text. */
@@ -410,6 +445,9 @@ function bindUi() {
         $('pause').textContent = paused ? 'resume' : 'pause';
     });
     $('error').addEventListener('click', hideError);
+    for (const [id, file] of [['open-capsule', 'capsule.glb'], ['open-scene', 'scene.glb']]) {
+        $(id).addEventListener('click', () => { open(`/${file}`, file).catch(() => {}); });
+    }
     bindAnimationUi(player, animUi(), () => { dirty = true; });
     const overlay = $('drop');
     window.addEventListener('dragover', (e) => { e.preventDefault(); overlay.classList.add('show'); });
@@ -485,6 +523,33 @@ const api = {
         await new Promise((r) => setTimeout(r, 100));
         await frames(2);
         return api.extent();
+    },
+    /**
+     * Run the physics `steps` fixed steps of 1/60 s now (deterministic: no wall clock; the
+     * physics is paused afterwards), hand the result to the splats, and return the scene's
+     * objects (see `objects`).
+     * @param {number} steps
+     */
+    simulate: async (steps) => {
+        await ready;
+        if (!current) throw new Error('no asset loaded');
+        paused = true;
+        $('pause').textContent = 'resume';
+        for (let i = 0; i < steps; i++) physicsStep();
+        current.sync(player.pose());
+        dirty = false;
+        await frames(2);
+        return objects();
+    },
+    /** The physics objects of a scene now (null for an asset without physics records). */
+    objects,
+    /**
+     * Where world points land on the canvas (CSS pixels, y down).
+     * @param {number[][]} points
+     */
+    toScreen: (points) => {
+        const cam = /** @type {any} */ (grabber?.camera.camera);
+        return points.map((p) => { const s = cam.worldToScreen(new pc.Vec3(p[0], p[1], p[2])); return [s.x, s.y]; });
     },
     /** Current world-space size [x, y, z] of the anchor meshes. */
     extent: () => (current && current.bodies.length ? current.bounds().size : null),
