@@ -108,6 +108,9 @@ MANIFEST_KEYS: dict[str, tuple[str, Callable[[Any], Any], bool]] = {
     "bake_poses": ("bake_poses", _as_str, True),
     "watertight": ("watertight", _as_bool, False),
     "collider": ("collider", _as_str, False),
+    "physics": ("physics", lambda v: [_as_str(v)], False),
+    "mass": ("mass", lambda v: [_as_str(v)], False),
+    "ground": ("ground", _as_bool, False),
 }
 
 

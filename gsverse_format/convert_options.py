@@ -21,7 +21,12 @@ if TYPE_CHECKING:
     from .converters.base import SourceOptions, TrellisFrame
 
 __all__ = ["ConvertOptions", "ConvertSummary", "check_options", "check_encoding_options",
-           "source_options"]
+           "source_options", "object_name", "object_names", "physics_request"]
+
+
+def object_name(path: str | os.PathLike[str]) -> str:
+    """The name of the object a mesh file holds: its file stem."""
+    return os.path.splitext(os.path.basename(os.fspath(path).rstrip(os.sep)))[0] or "object"
 
 
 @dataclass
@@ -46,7 +51,10 @@ class ConvertOptions:
     (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`). An anchor mesh that does not fit
     its splats (:func:`gsverse_format.scene.judge_fit`) is a warning, an error with ``strict``.
     The file options (``mesh``, ``meshes``, ``pt_path``, ``bake_poses``) take str or any
-    path-like object (``pathlib.Path``).
+    path-like object (``pathlib.Path``). ``physics`` (the ``--physics`` values, a str for one)
+    and ``mass`` (the ``--mass NAME=KG`` values) say how each object moves
+    (:func:`gsverse_format.physics.parse_physics`; each such object gets a hull collider);
+    ``ground`` adds a static ground box under the scene (glTF output only).
     """
 
     mesh: str | None = None
@@ -71,11 +79,18 @@ class ConvertOptions:
     anchors: str = "explicit"
     quantize: int | None = None
     strict: bool = False
+    physics: list[str] | None = None
+    mass: list[str] | None = None
+    ground: bool = False
 
     def __post_init__(self) -> None:  # file options given as path-like objects, kept as str
         self.mesh, self.pt_path, self.bake_poses = (
             None if p is None else os.fspath(p) for p in (self.mesh, self.pt_path, self.bake_poses))
         self.meshes = None if self.meshes is None else [os.fspath(p) for p in self.meshes]
+        if isinstance(self.physics, str):
+            self.physics = [self.physics]
+        if isinstance(self.mass, str):
+            self.mass = [self.mass]
 
 
 @dataclass
@@ -101,6 +116,10 @@ class ConvertSummary:
     objects: list[dict[str, Any]] = field(default_factory=list)
     anchor_meshes: list[dict[str, Any]] = field(default_factory=list)
     fit: list[dict[str, Any]] = field(default_factory=list)
+    #: Per object with physics: {name, kind, mass, collider: {kind, faces}}.
+    physics: list[dict[str, Any]] = field(default_factory=list)
+    #: The ground box: {size: [x, y, z], translation: [x, y, z], top: y}, or None.
+    ground: dict[str, Any] | None = None
     output_bytes: int = 0
     seconds: float = 0.0
     #: The splats were bound, but the output format (PLY) holds plain splats only.
@@ -144,6 +163,15 @@ class ConvertSummary:
             collider = f"; {m['collider']['kind']} collider, {m['collider']['faces']} faces" \
                 if m["collider"] else ""
             out.append(f"  manifold   {m['name']} anchor mesh: {state}{collider}")
+        for body in self.physics:
+            mass = f", {body['mass']:.6g} kg" if body["mass"] is not None else ""
+            out.append(f"  physics    {body['name']}: {body['kind']}{mass}; "
+                       f"{body['collider']['kind']} collider, {body['collider']['faces']} faces")
+        if self.ground is not None:
+            g = self.ground
+            out.append(f"  ground     static box {g['size'][0]:.4g} x {g['size'][1]:.4g} x "
+                       f"{g['size'][2]:.4g}, top at y = {g['top']:.6g} (the lowest splat), "
+                       f"centred at x = {g['translation'][0]:.4g}, z = {g['translation'][2]:.4g}")
         for note in self.notes:
             out.append(f"  note       {note}")
         out.append(f"  wrote      {self.output_bytes} bytes in {self.seconds:.2f} s")
@@ -164,9 +192,11 @@ def check_options(input_path: str, output_path: str, options: ConvertOptions) ->
         raise UsageError("--drop-unanchored needs --max-distance")
     if options.collider is not None and options.collider not in ("hull",):
         raise UsageError(f"--collider must be hull, not {options.collider!r}")
-    if options.plain and (options.meshes or options.watertight or options.collider):
-        raise UsageError("--plain writes splats without anchoring: drop --mesh, --watertight "
-                         "and --collider, or --plain")
+    if options.plain and (options.meshes or options.watertight or options.collider
+                          or options.physics or options.ground):
+        raise UsageError("--plain writes splats without anchoring: drop --mesh, --watertight, "
+                         "--collider, --physics and --ground, or --plain")
+    physics_request(input_path, options)
     for flag, value in (("--faces", options.faces),
                         ("--reconstruct-faces", options.reconstruct_faces)):
         if value is not None and value < 4:
@@ -182,6 +212,14 @@ def check_options(input_path: str, output_path: str, options: ConvertOptions) ->
         raise UsageError(f"--bake-poses needs a USD output ({', '.join(suffixes('write', 'usd'))})",
                          output_path)
     check_encoding_options(output_path, options, out_format.name)
+    if (options.physics or options.ground) and out_format.name != "gltf":
+        raise UsageError(f"--physics and --ground apply to glTF output (.glb, .gltf) only "
+                         f"(KHR_physics_rigid_bodies); {out_format.name.upper()} output carries "
+                         f"{'colliders only (--collider hull)' if out_format.name == 'usd' else 'plain splats'}",
+                         output_path)
+    if options.ground and not options.frame_change:
+        raise UsageError("--ground is placed below the scene along glTF's +Y (up): drop "
+                         "--no-frame-change or --ground")
     in_format = FORMATS.get(os.path.splitext(input_path)[1].lower())
     if "usd" in (out_format.name, in_format.name if in_format is not None else None):
         from .io.usd.schema import import_pxr
@@ -208,6 +246,27 @@ def check_encoding_options(output_path: str, options: ConvertOptions, out_format
     if options.anchors == "compact" and options.keep_order:
         raise UsageError("--anchors compact stores the splats grouped by face: drop --keep-order "
                          "or --anchors compact")
+
+
+def object_names(input_path: str, options: ConvertOptions) -> list[str]:
+    """The names of the objects a conversion makes: the ``--mesh`` file stems, or the input's
+    stem for a mesh reconstructed from the splats."""
+    meshes = options.meshes or ([options.mesh] if options.mesh else [])
+    return [object_name(p) for p in meshes] or [object_name(input_path) or "splats"]
+
+
+def physics_request(input_path: str, options: ConvertOptions) -> tuple[dict[str, str],
+                                                                         dict[str, float]]:
+    """(object name -> physics kind, object name -> mass) that ``--physics`` and ``--mass``
+    ask for (:func:`gsverse_format.physics.parse_physics`); :class:`UsageError` for a request
+    that does not parse or names no object."""
+    from .physics import parse_mass, parse_physics
+
+    names = object_names(input_path, options)
+    kinds = parse_physics(options.physics, names)
+    if options.mass and not kinds:
+        raise UsageError("--mass needs --physics (the objects it weighs)")
+    return kinds, parse_mass(options.mass, kinds, names)
 
 
 def source_options(source: str, options: ConvertOptions) -> tuple[SourceOptions, list[str]]:

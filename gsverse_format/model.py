@@ -34,6 +34,8 @@ __all__ = [
     "SplatCloud",
     "TriangleMesh",
     "Collider",
+    "Physics",
+    "Ground",
     "LocalAnchors",
     "GamesAnchors",
     "Anchors",
@@ -419,6 +421,8 @@ class SplatPrimitive:
     anchoring: Anchoring | None = None
     name: str | None = None
     khr: KhrProperties = field(default_factory=KhrProperties)
+    #: How the object moves in a physics engine (glTF: ``KHR_physics_rigid_bodies`` on its node).
+    physics: Physics | None = None
 
     def __post_init__(self) -> None:
         if self.anchoring is not None and len(self.anchoring.anchors) != len(self.splats):
@@ -438,9 +442,29 @@ class Collider:
 
 
 @dataclass
+class Physics:
+    """How an anchored object moves in a physics engine (spec/README.md §Physics): ``kind``
+    one of :data:`gsverse_format.physics.PHYSICS_KINDS`, ``mass`` in kilograms (None: the
+    engine computes it from the collider). Its collider is the :class:`Collider` of its anchor
+    mesh."""
+
+    kind: str
+    mass: float | None = None
+
+
+@dataclass
+class Ground:
+    """A static, invisible ground box (spec/README.md §Physics): ``size`` (x, y, z) and the
+    ``translation`` of its centre, in the asset's frame."""
+
+    size: tuple[float, float, float]
+    translation: tuple[float, float, float]
+
+
+@dataclass
 class SplatAsset:
-    """What one file holds: splat primitives, anchored or plain (static), and the colliders
-    of its anchor meshes. ``frame`` is the coordinate frame the values are in (a key of
+    """What one file holds: splat primitives, anchored or plain (static), the colliders
+    of its anchor meshes and the ground under them (``ground``, or None). ``frame`` is the coordinate frame the values are in (a key of
     :data:`gsverse_format.io.registry.FRAMES`): ``"gltf"`` (+Y up), or the source's frame for
     an asset converted without the frame change (``gsverse-convert --no-frame-change``),
     recorded in the file (glTF ``asset.extras.gsverse.frame``, USD ``customLayerData``) so
@@ -450,6 +474,7 @@ class SplatAsset:
     generator: str | None = None
     colliders: list[Collider] = field(default_factory=list)
     frame: str = "gltf"
+    ground: Ground | None = None
 
     @property
     def anchored(self) -> list[SplatPrimitive]:

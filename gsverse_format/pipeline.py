@@ -96,9 +96,11 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
     if _format_only(input_path, output_path, options):
         if options.mesh is not None:
             raise UsageError("--plain writes splats without anchoring: drop --mesh or --plain")
-        if options.watertight or options.collider is not None:
-            raise UsageError("--watertight and --collider act on the anchor mesh the splats are "
-                             "bound to: give --mesh (or a source that has or reconstructs one)")
+        if options.watertight or options.collider is not None or options.physics \
+                or options.ground:
+            raise UsageError("--watertight, --collider, --physics and --ground act on the "
+                             "anchor mesh the splats are bound to: give --mesh (or a source "
+                             "that has or reconstructs one)")
         progress.stage(f"reading {os.path.basename(input_path)}")
         in_format = find_format(input_path, "read")
         summary.source = _FORMAT_SOURCE.get(in_format.name, in_format.name)
@@ -120,6 +122,11 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         if options.plain:
             asset = SplatAsset([SplatPrimitive(p.splats, None, p.name, p.khr)
                                 for p in asset.primitives], asset.generator, frame=asset.frame)
+        bodies = [p.name or "?" for p in asset.primitives if p.physics is not None] + \
+            (["ground"] if asset.ground is not None else [])
+        if bodies and find_format(output_path, "write").name != "gltf":
+            summary.notes.append(f"the input's physics ({', '.join(bodies)}) is not written: "
+                                 f"only glTF output holds it")
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
     from .scene import (anchor_scene, finish_physics, normalize_skin_weights,

@@ -31,7 +31,9 @@ Physics-ready anchor meshes (:mod:`gsverse_format.manifold`)
     ``--watertight`` replaces each anchor mesh by a closed 2-manifold before binding, so the
     splats are bound (again, for a source's exact anchors) to the repaired surface;
     ``--collider hull`` adds each anchor mesh's convex hull as its collider; every summary
-    reports whether each written anchor mesh is a closed 2-manifold.
+    reports whether each written anchor mesh is a closed 2-manifold. ``--physics`` makes
+    objects bodies (each with its anchor mesh's hull as collider) and ``--ground`` puts a
+    static ground box under the scene (:mod:`gsverse_format.physics`, spec §Physics).
 """
 from __future__ import annotations
 
@@ -42,13 +44,15 @@ from typing import Any
 import numpy as np
 
 from .binding import BindResult, bind_local
-from .convert_options import ConvertOptions, ConvertSummary
+from .convert_options import ConvertOptions, ConvertSummary, object_name
 from .errors import BindingError, FormatError, GsverseError, UsageError
 from .io.mesh import read_mesh
 from .io.registry import FRAMES
 from .model import (
     Anchoring,
     Collider,
+    Ground,
+    Physics,
     SplatAsset,
     SplatCloud,
     SplatPrimitive,
@@ -68,11 +72,6 @@ __all__ = [
     "prepare_mesh",
     "read_scene_meshes",
 ]
-
-
-def object_name(path: str | os.PathLike[str]) -> str:
-    """The name of the object a mesh file holds: its file stem."""
-    return os.path.splitext(os.path.basename(os.fspath(path).rstrip(os.sep)))[0] or "object"
 
 
 def distance_stats(distance: np.ndarray, diagonal: float) -> dict[str, float]:
@@ -205,24 +204,55 @@ def prepare_mesh(mesh: TriangleMesh, options: ConvertOptions, summary: ConvertSu
 
 
 def finish_physics(asset: SplatAsset, options: ConvertOptions, summary: ConvertSummary) -> None:
-    """The manifold report of each written anchor mesh into ``summary.anchor_meshes``, and
-    ``--collider`` meshes into ``asset.colliders``."""
+    """The manifold report of each written anchor mesh into ``summary.anchor_meshes``,
+    ``--collider`` meshes into ``asset.colliders``, ``--physics`` (each such object's
+    :class:`~gsverse_format.model.Physics`, with a hull collider whether or not ``--collider``
+    asks for one) and ``--ground`` (:func:`gsverse_format.physics.ground_box` under every
+    splat)."""
+    from .convert_options import physics_request
     from .manifold import collider, manifold_report
 
-    seen: set[int] = set()
+    kinds, masses = physics_request(summary.input, options)
+    scene = bool(options.meshes)
+    seen: dict[int, Collider | None] = {}
     for prim in asset.anchored:
         assert prim.anchoring is not None
         mesh = prim.anchoring.mesh
-        if id(mesh) in seen:
+        name = prim.name if scene else next(iter(kinds), None)
+        kind = kinds.get(name) if name is not None else None
+        if id(mesh) not in seen:
+            entry: dict[str, Any] = {"name": prim.name, "faces": mesh.face_count,
+                                     **manifold_report(mesh).as_dict(), "collider": None}
+            made = None
+            hull_kind = options.collider or ("hull" if kind is not None else None)
+            if hull_kind is not None:
+                made = Collider(collider(mesh, hull_kind), mesh, hull_kind)
+                asset.colliders.append(made)
+                entry["collider"] = {"kind": hull_kind, "faces": made.mesh.face_count}
+            seen[id(mesh)] = made
+            summary.anchor_meshes.append(entry)
+        made = seen[id(mesh)]
+        if kind is None or name is None:
             continue
-        seen.add(id(mesh))
-        entry: dict[str, Any] = {"name": prim.name, "faces": mesh.face_count,
-                                 **manifold_report(mesh).as_dict(), "collider": None}
-        if options.collider is not None:
-            hull = collider(mesh, options.collider)
-            asset.colliders.append(Collider(hull, mesh, options.collider))
-            entry["collider"] = {"kind": options.collider, "faces": hull.face_count}
-        summary.anchor_meshes.append(entry)
+        if made is None:  # a mesh shared with an object without physics
+            made = Collider(collider(mesh, "hull"), mesh, "hull")
+            asset.colliders.append(made)
+            seen[id(mesh)] = made
+        prim.physics = Physics(kind, masses.get(name))
+        summary.physics.append({"name": prim.name, "kind": kind, "mass": masses.get(name),
+                                "collider": {"kind": made.kind,
+                                             "faces": made.mesh.face_count}})
+    missing = sorted(set(kinds) - {p.name for p in asset.anchored} if scene else ())
+    if missing:
+        summary.notes.append(f"--physics: {', '.join(missing)} has no anchored splats, so no "
+                             f"body is written for it")
+    if options.ground:
+        from .physics import ground_box
+
+        size, centre = ground_box(np.concatenate([p.splats.means for p in asset.primitives]))
+        asset.ground = Ground(size, centre)
+        summary.ground = {"size": list(size), "translation": list(centre),
+                          "top": centre[1] + size[1] / 2}
 
 
 def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],

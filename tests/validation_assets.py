@@ -22,8 +22,9 @@ from gsverse_format import EXTENSION_NAME
 from gsverse_format.binding import bind_local
 from gsverse_format.examples import example_mesh, example_splats
 from gsverse_format.io.gltf import asset_to_gltf
-from gsverse_format.model import (Anchoring, GamesAnchors, SplatAsset, SplatCloud,
-                                  SplatPrimitive, TriangleMesh)
+from gsverse_format.model import (Anchoring, Collider, GamesAnchors, Ground, Physics,
+                                  SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh)
+from gsverse_format.physics import PHYSICS, SHAPES
 from gsverse_format.remapping.reference import remap
 from gsverse_format.rig import AnchorRig, RigAnimation, RigChannel, RigNode
 
@@ -224,6 +225,25 @@ def _games() -> Doc:
     return Doc.of(games_asset())
 
 
+def physics_asset(kind: str = "soft") -> SplatAsset:
+    """:func:`local_asset` whose anchored object is a body of ``kind`` (its anchor mesh as its
+    collider) over a ground box (spec §Physics)."""
+    asset = local_asset()
+    body = asset.primitives[0]
+    body.physics = Physics(kind, 2.0 if kind != "static" else None)
+    asset.colliders.append(Collider(body.anchoring.mesh, body.anchoring.mesh))
+    asset.ground = Ground((3.0, 0.02, 3.0), (0.0, -0.9, 0.0))
+    return asset
+
+
+def _physics() -> Doc:
+    return Doc.of(physics_asset())
+
+
+def _body(d: Doc) -> dict:
+    return d.doc["nodes"][0]["extensions"][PHYSICS]
+
+
 def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
     """Valid assets of every kind the writer produces; they must validate without findings."""
     folder = pathlib.Path(folder)
@@ -247,7 +267,10 @@ def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
             ("compact_games.glb", games_asset(), {"anchors": "compact",
                                                   "quantize": {"barycentrics": "unsigned_short"}}),
             ("plain.glb", SplatAsset([SplatPrimitive(example_splats(example_mesh(1), 20), None,
-                                                     "plain")]), {})):
+                                                     "plain")]), {}),
+            ("physics_soft.glb", physics_asset(), {"anchors": "compact"}),
+            ("physics_kinematic.gltf", physics_asset("kinematic"), {}),
+            ("physics_static.glb", physics_asset("static"), {})):
         out.append(Doc.of(asset, **kw).write(folder, name))
     return out
 
@@ -641,6 +664,48 @@ def _(folder):
         d.doc["nodes"].append({"mesh": d.ext()["mesh"], "name": "anchor"})
         d.doc["scenes"][0]["nodes"].append(len(d.doc["nodes"]) - 1)
     return _edited(folder, "drawn.glb", edit)
+
+
+# -- physics ------------------------------------------------------------------------------
+@trigger("PHYSICS_GEOMETRY_INVALID")
+def _(folder):
+    return _edited(folder, "collider_node.glb",
+                   lambda d: _body(d)["collider"]["geometry"].update(node=99), _physics)
+
+
+@trigger("PHYSICS_SHAPE_INVALID")
+def _(folder):
+    return _edited(folder, "flat_ground.glb", lambda d: d.doc["extensions"][SHAPES]["shapes"][0]
+                   ["box"].update(size=[3.0, 0.0, 3.0]), _physics)
+
+
+@trigger("PHYSICS_MOTION_INVALID")
+def _(folder):
+    return _edited(folder, "negative_mass.glb",
+                   lambda d: _body(d)["motion"].update(mass=-1.0), _physics)
+
+
+@trigger("PHYSICS_KIND_UNKNOWN")
+def _(folder):
+    return _edited(folder, "jelly.glb",
+                   lambda d: d.doc["nodes"][0]["extras"]["gsverse"].update(physics="jelly"),
+                   _physics)
+
+
+@trigger("PHYSICS_KIND_MISMATCH")
+def _(folder):
+    return _edited(folder, "kinematic_moving.glb",
+                   lambda d: d.doc["nodes"][0]["extras"]["gsverse"].update(physics="kinematic"),
+                   _physics)
+
+
+@trigger("PHYSICS_SOFT_NOT_ANCHORED")
+def _(folder):
+    def edit(d):
+        d.doc["nodes"].append({"name": "cloth", "extras": {"gsverse": {"physics": "soft"}},
+                               "extensions": {PHYSICS: copy.deepcopy(_body(d))}})
+        d.doc["scenes"][0]["nodes"].append(len(d.doc["nodes"]) - 1)
+    return _edited(folder, "soft_without_anchors.glb", edit, _physics)
 
 
 @trigger("ANCHOR_SKIN_INVALID")

@@ -22,6 +22,7 @@ from .anchor import check_anchor
 from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
 from .context import CheckContext
 from .graph import check_mesh_indices, check_node_graph
+from .physics import check_physics
 from .issues import Finding, Issues, Severity
 from .khr import check_splat_primitive
 from .usd import usd_mime_type, validate_usd
@@ -163,6 +164,7 @@ def _check_document(ctx: Context, info: dict) -> None:
         if uses and name not in used:
             ctx.issues.add(Code.EXTENSION_NOT_DECLARED, f"{name} is used ({len(uses)} time(s)) "
                            f"but not listed in extensionsUsed", pointer=uses[0])
+    check_physics(ctx, used)
     info.update({"splatPrimitives": splats, "anchoredPrimitives": anchored, "splats": total,
                  "anchorPrimitives": sum(1 for k in ctx.cache if k[0] == "anchor")})
     generator = doc.get("asset", {}).get("generator") if isinstance(doc.get("asset"), dict) \

@@ -78,7 +78,7 @@ manifests:
   input). Keys: input (required), output (relative to DIR), mesh, from, pt, k, deformation,
   max-distance, absolute-distance, drop-unanchored, faces, reconstruct-faces, sh-degree,
   keep-order, plain, legacy-trellis-frame, no-frame-change, bake-poses, watertight,
-  collider (one mesh per asset; dashes or
+  collider, physics, mass, ground (one mesh per asset; dashes or
   underscores). Paths are relative to the manifest's folder; booleans true/false, yes/no or
   1/0; an empty cell or a missing key takes the command line's value. Example CSV:
       input,mesh,output,faces
@@ -106,6 +106,20 @@ physics-ready anchor meshes:
   the summary says whether each anchor mesh is a closed 2-manifold ("manifold" lines, --json
   "anchor_meshes"); --watertight repairs it before binding, --collider hull adds its convex
   hull as a collision mesh (spec/README.md, "Colliders").
+
+physics (--physics, --mass, --ground; glTF output only):
+  gsverse-convert room.ply room.glb --mesh chair.obj --mesh pillow.obj --mesh lamp.obj \
+      --physics chair=rigid,pillow=soft,lamp=kinematic --mass chair=4 --ground
+  each object with physics gets KHR_physics_rigid_bodies on its node: a convex-hull collider
+  (its anchor mesh's hull, in a node outside the scene; --collider hull is implied) and a
+  motion (rigid, soft), a kinematic motion (kinematic) or none (static); extras.gsverse.physics
+  names the kind. soft is written as rigid for engines that know only rigid bodies; GS-Verse
+  aware engines simulate the anchor mesh itself and remap the splats every frame. --physics
+  KIND applies to every object, one --physics per --mesh applies in order, NAME=KIND pairs by
+  object name (the mesh file stem; unnamed objects get none). --ground adds a static box (1 %
+  of the scene's diagonal thick, 3 times its width and depth) with its top at the lowest
+  splat. The summary has one "physics" line per body and a "ground" line (--json: "physics",
+  "ground"). USD output carries colliders only (--collider hull): --physics is refused there.
 
 standard input and output ('-'):
   IN '-' reads a PLY or a GLB from standard input (recognised by its first bytes; other
@@ -206,6 +220,18 @@ def build_parser() -> argparse.ArgumentParser:
     anc.add_argument("--collider", choices=("hull",),
                      help="also write a collision mesh for each anchor mesh: hull = its convex "
                           "hull (glTF: a mesh marked extras.gsverse.collider, drawn by no node)")
+    anc.add_argument("--physics", action="append", metavar="KIND|NAME=KIND",
+                     help="make the objects bodies for physics engines (glTF "
+                          "KHR_physics_rigid_bodies, each with its anchor mesh's convex hull as "
+                          "collider): KIND is rigid, soft, kinematic or static; given once it "
+                          "applies to every object, given once per --mesh to each in order, or "
+                          "by name: --physics fox=soft,chair=rigid (see 'physics' below)")
+    anc.add_argument("--mass", action="append", metavar="NAME=KG",
+                     help="the mass of an object with --physics rigid, soft or kinematic, in "
+                          "kilograms (default: the engine computes it from the collider)")
+    anc.add_argument("--ground", action="store_true",
+                     help="add a static, invisible ground box under the scene (its top at the "
+                          "lowest splat; glTF KHR_implicit_shapes)")
     anc.add_argument("--plain", action="store_true",
                      help="format conversion only: write plain KHR splats without anchoring")
     gl = p.add_argument_group("glTF output")
@@ -250,7 +276,8 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
                           pt_path=args.pt_path, k=args.k,
                           legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
                           bake_poses=args.bake_poses, anchors=args.anchors,
-                          quantize=args.quantize, strict=args.strict)
+                          quantize=args.quantize, strict=args.strict, physics=args.physics,
+                          mass=args.mass, ground=args.ground)
 
 
 def _sniff_stdin(head: bytes) -> str:

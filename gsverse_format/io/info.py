@@ -218,8 +218,13 @@ def describe(path: str | os.PathLike[str]) -> FileInfo:
     for i, prim in enumerate(prims):
         info.primitives.append({"index": i, "name": prim.name, "splats": len(prim.splats),
                                 "sh_degree": prim.splats.sh_degree,
-                                "anchoring": _anchoring(prim)})
+                                "anchoring": _anchoring(prim),
+                                "physics": None if prim.physics is None else
+                                {"kind": prim.physics.kind, "mass": prim.physics.mass}})
     info.meshes = _meshes(asset)
+    if asset.ground is not None:
+        info.meshes["ground"] = {"size": list(asset.ground.size),
+                                 "translation": list(asset.ground.translation)}
     if decoded is not None:
         info.parts = dict(decoded.parts)
         info.notes.extend(decoded.notes)
@@ -258,6 +263,10 @@ def format_text(info: FileInfo) -> str:
             if "encoding" in a:
                 what += f", {a['encoding']} encoding"
             what += f"; anchor mesh {a['mesh_triangles']} triangles, {a['mesh_vertices']} vertices"
+        body = p.get("physics")
+        if body is not None:
+            what += f"; physics {body['kind']}" + (f", {body['mass']:g} kg"
+                                                  if body["mass"] is not None else "")
         label = f"primitive {p['index']}" + (f" {p['name']!r}" if p["name"] else "")
         lines.append(f"  {label}: {p['splats']} splats, SH degree {p['sh_degree']}, {what}")
     if len(shown) < len(info.primitives):
@@ -274,6 +283,9 @@ def format_text(info: FileInfo) -> str:
     if m.get("colliders"):
         mesh_line += f"; {m['colliders']} collider(s), {m['collider_triangles']} triangles"
     lines.append(f"  meshes      {mesh_line}")
+    if m.get("ground"):
+        g = m["ground"]
+        lines.append(f"  ground      static box {_vec(g['size'])}, centre {_vec(g['translation'])}")
     if info.parts:
         lines.append("  size by part")
         width = max(len(k) for k in info.parts)

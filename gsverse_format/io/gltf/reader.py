@@ -30,6 +30,7 @@ from ...vocabulary import (DERIVED_KEYS, DEFORMATIONS, EXTENSION, FACE_COUNTS, F
                            gltf_required_keys)
 from .accessors import Accessors
 from .container import DEFAULT_MAX_BYTES, GltfFormatError, as_index, gltf_error, pointer_token
+from .physics import read_physics
 from .document import Document, open_document
 
 __all__ = ["ROTATION", "SCALE", "OPACITY", "sh_attribute", "POINTS", "TRIANGLES",
@@ -386,6 +387,7 @@ class SplatReader:
         """Every splat primitive of the document."""
         node_names = self.node_names()
         primitives: list[SplatPrimitive] = []
+        sources: list[tuple[int, int]] = []
         for m, mesh in enumerate(self.meshes):
             name = mesh.get("name")
             if not isinstance(name, str):
@@ -405,11 +407,14 @@ class SplatReader:
                                          f"/meshes/{m}/primitives/{p}/mode")
                     continue
                 primitives.append(self.splat_primitive(m, p, name))
+                sources.append((m, p))
         generator = getattr(self.document.gltf.asset, "generator", None)
         extras = (self.document.doc.get("asset") or {}).get("extras")
+        colliders, ground = read_physics(self, primitives, sources)
         return SplatAsset(primitives, generator if isinstance(generator, str) else None,
-                          frame=recorded_frame(extras.get("gsverse")
-                                               if isinstance(extras, dict) else None))
+                          colliders, frame=recorded_frame(extras.get("gsverse")
+                                                          if isinstance(extras, dict) else None),
+                          ground=ground)
 
 
 def read_document(document: Document) -> SplatAsset:

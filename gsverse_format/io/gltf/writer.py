@@ -49,6 +49,7 @@ from ...vocabulary import (BYTE, EXTENSION, FLOAT, KHR, NODE_VISIBILITY, SH_C0, 
                            UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT)
 from .accessors import COMPONENT_DTYPES
 from .container import CHUNK_BIN, CHUNK_JSON, GLB_MAGIC, glb_bytes
+from .physics import write_physics
 from .rig import RigOutput, write_rig
 from .reader import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
 
@@ -366,15 +367,19 @@ def _khr_object(prim: SplatPrimitive, c: SplatCloud) -> dict[str, Any]:
 
 
 def _collider_meshes(b: BufferBuilder, asset: SplatAsset, anchor_mesh_index: dict[int, int],
-                     meshes: list[pygltflib.Mesh | None]) -> list[pygltflib.Mesh]:
+                     meshes: list[pygltflib.Mesh | None]) -> tuple[list[pygltflib.Mesh],
+                                                                    dict[int, int]]:
     """The colliders of the written anchor meshes, appended after them: each a mesh drawn by
     no node, marked ``extras.gsverse = {"collider": kind, "for": <anchor mesh index>}``
-    (spec/README.md §Colliders)."""
+    (spec/README.md §Colliders); and ``id(anchor mesh)`` -> the index its (first) collider
+    mesh gets."""
     out = []
+    index: dict[int, int] = {}
     for collider in asset.colliders:
         m = anchor_mesh_index.get(id(collider.anchor))
         if m is None:
             continue
+        index.setdefault(id(collider.anchor), len(meshes) + len(out))
         mesh = collider.mesh
         pos = b.add(mesh.vertices, FLOAT, "VEC3", target=ARRAY_BUFFER, minmax=True)
         itype = UNSIGNED_SHORT if len(mesh.vertices) < 65535 else UNSIGNED_INT
@@ -385,7 +390,7 @@ def _collider_meshes(b: BufferBuilder, asset: SplatAsset, anchor_mesh_index: dic
             attributes=pygltflib.Attributes(POSITION=pos), indices=idx, mode=TRIANGLES)],
             weights=None, name=name,
             extras={"gsverse": {"collider": collider.kind, "for": m}}))
-    return out
+    return out, index
 
 
 def asset_to_gltf(asset: SplatAsset, *, quantize: dict | None = None,
@@ -483,21 +488,23 @@ def _gltf_document(asset: SplatAsset, *, quantize: dict | None = None,
                                         mode=POINTS, extensions={KHR: khr})
         meshes[i] = pygltflib.Mesh(primitives=[primitive], name=prim.name, weights=None)
         nodes.append(pygltflib.Node(mesh=i, name=prim.name, children=None))
-    meshes.extend(_collider_meshes(b, asset, anchor_mesh_index, meshes))
+    collider_meshes, collider_index = _collider_meshes(b, asset, anchor_mesh_index, meshes)
+    meshes.extend(collider_meshes)
     rigged = RigOutput()
     for rig, gmesh, m in rigs:
         write_rig(b.add, rig, gmesh, m, len(nodes) + len(rigged.nodes), rigged)
+    physics = write_physics(asset, nodes, collider_index, len(nodes) + len(rigged.nodes))
 
     carried = sorted({name for prim in prims for name in prim.khr.extensions})
     used = ([KHR] if prims else []) + ([EXTENSION] if anchor_meshes else []) + carried + \
-        ([NODE_VISIBILITY] if rigs else [])
+        ([NODE_VISIBILITY] if rigs else []) + physics.used
     length = b.pad()
     gltf = pygltflib.GLTF2(
         asset=pygltflib.Asset(version="2.0", generator=f"gsverse-format {__version__}",
                               extras=_frame_extras(asset)),
-        extensionsUsed=used, scene=0,
-        scenes=[pygltflib.Scene(nodes=list(range(len(nodes))) + rigged.roots)],
-        nodes=nodes + rigged.nodes, meshes=meshes, skins=rigged.skins,
+        extensionsUsed=used, scene=0, extensions=physics.extensions,
+        scenes=[pygltflib.Scene(nodes=list(range(len(nodes))) + rigged.roots + physics.roots)],
+        nodes=nodes + rigged.nodes + physics.nodes, meshes=meshes, skins=rigged.skins,
         animations=rigged.animations,
         accessors=[pygltflib.Accessor(**{"byteOffset": 0, "normalized": None, "min": None,
                                           "max": None, **acc}) for acc in b.accessors],
