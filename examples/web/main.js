@@ -163,18 +163,30 @@ function startShake() {
     shake = new Shake(softs(), state.axis);
 }
 
-function drop() {
+/**
+ * Drop: the soft bodies (and, in a physics scene, the dynamic rigid bodies) are lifted by half
+ * the height of what they make up and fall onto the ground.
+ * @param {boolean} [run] start the physics (default); false leaves it paused (scripted steps)
+ */
+function drop(run = true) {
     if (!current || !world) return;
     resetAll();
-    const rb = current.restBounds();
-    const lift = 0.5 * rb.size[1];
-    for (const b of current.bodies) {
-        b.soft.placeAt([0, lift, 0]);
-        b.soft.setGravity(1);
+    if (current.isScene) {
+        current.lift(0.5 * current.sceneRestBounds().size[1]);
+    } else {
+        const rb = current.restBounds();
+        const lift = 0.5 * rb.size[1];
+        for (const b of current.bodies) {
+            b.soft.placeAt([0, lift, 0]);
+            b.soft.setGravity(1);
+        }
+        follow = true;
     }
-    paused = false;
-    follow = true;
-    $('pause').textContent = 'pause';
+    dirty = true;
+    if (run) {
+        paused = false;
+        $('pause').textContent = 'pause';
+    }
 }
 
 /** One fixed physics step of the current asset, with whatever holds it. */
@@ -261,7 +273,8 @@ async function open(source, name) {
     assetLabel = `${name}: ${c.anchored} anchored splats${c.plain ? `, ${c.plain} plain` : ''}`;
     $('asset').textContent = assetLabel;
     $('asset').title = meshes.join('\n');
-    if (current.bodies.length === 0) showError(new Error(`${name}: no anchored splat primitive (plain splats are shown; nothing to deform)`));
+    if (current.bodies.length === 0 && current.rigids.length === 0) showError(new Error(`${name}: no anchored splat primitive (plain splats are shown; nothing to deform)`));
+    if (current.isScene && !TEST) drop();       // the objects of a physics scene fall when it opens
     dirty = true;
     await frames(3);
     return info();
@@ -557,7 +570,8 @@ const api = {
     pause: (on = true) => { paused = !!on; $('pause').textContent = paused ? 'resume' : 'pause'; return paused; },
     /** Open an asset by URL or bytes. @param {string|Uint8Array} source @param {string} [name] */
     load: (source, name) => open(source, name || (typeof source === 'string' ? source.split('/').pop() || 'asset.glb' : 'asset.glb')),
-    drop,
+    /** Drop (see drop); `run: false` leaves the physics paused. @param {boolean} [run] */
+    drop: (run = true) => drop(run !== false),
     shake: () => { paused = false; startShake(); },
     /**
      * Move the stretch slider to `value` the way a person does (the slider's input event): the

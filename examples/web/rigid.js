@@ -193,11 +193,15 @@ export class RigidObject {
         this.drag?.step(dt);
     }
 
-    /** Back where the file puts it, at rest (then the file's initial velocity). */
-    reset() {
+    /**
+     * Back where the file puts it (moved by `offset`, world), at rest (then the file's initial
+     * velocity).
+     * @param {number[]} [offset]
+     */
+    reset(offset = [0, 0, 0]) {
         this.drag = null;
         const Jolt = this.world.Jolt, o = this.world.origin, u = this.world.unit;
-        const t = this.start.translation, r = this.start.rotation;
+        const t = this.start.translation.map((v, k) => v + offset[k]), r = this.start.rotation;
         const pos = new Jolt.RVec3((t[0] - o[0]) * u, (t[1] - o[1]) * u, (t[2] - o[2]) * u);
         const rot = new Jolt.Quat(r[0], r[1], r[2], r[3]);
         this.world.bodies.SetPositionAndRotation(this.id, pos, rot, this.kind === 'static' ? Jolt.EActivation_DontActivate : Jolt.EActivation_Activate);

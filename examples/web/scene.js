@@ -324,6 +324,16 @@ export class DemoAsset {
         }
     }
 
+    /**
+     * Lift every moving object of a scene by `dy` (world, up) from where the file puts it, at
+     * rest: dynamic rigid bodies and soft bodies (kinematic and static ones stay).
+     * @param {number} dy
+     */
+    lift(dy) {
+        for (const { rigid } of this.rigids) if (rigid.kind === 'rigid') rigid.reset([0, dy, 0]);
+        for (const b of this.bodies) b.soft.placeAt([0, dy, 0]);
+    }
+
     /** Back to the rest pose (physics and splats). */
     reset() {
         for (const b of this.bodies) {
