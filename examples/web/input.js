@@ -137,6 +137,27 @@ export class Grabber {
         return best;
     }
 
+    /**
+     * Where a scripted drag of `soft` starts and ends on screen: the vertex farthest along `axis`
+     * (and nearest the axis through the centre), pulled outwards from the centre by `pixels`.
+     * @param {import('./physics.js').SoftBodyMesh} soft @param {number} axis @param {number} pixels
+     * @returns {{from: number[], to: number[]}}
+     */
+    farEnd(soft, axis, pixels) {
+        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
+        const p = soft.positions(), k = axis, c = soft.bounds().center;
+        let best = 0, bestScore = -Infinity;
+        for (let i = 0; i < soft.count; i++) {
+            const off = Math.hypot(...[0, 1, 2].filter((j) => j !== k).map((j) => p[3 * i + j] - c[j]));
+            const score = p[3 * i + k] - 0.5 * off;
+            if (score > bestScore) { bestScore = score; best = i; }
+        }
+        const s0 = cam.worldToScreen(new pc.Vec3(p[3 * best], p[3 * best + 1], p[3 * best + 2]));
+        const sc = cam.worldToScreen(new pc.Vec3(c[0], c[1], c[2]));
+        const dir = [s0.x - sc.x, s0.y - sc.y], len = Math.hypot(dir[0], dir[1]) || 1;
+        return { from: [s0.x, s0.y], to: [s0.x + pixels * dir[0] / len, s0.y + pixels * dir[1] / len] };
+    }
+
     /** @param {PointerEvent} e */
     down(e) {
         this.canvas.setPointerCapture(e.pointerId);
@@ -166,10 +187,11 @@ export class Grabber {
     }
 
     /**
-     * Pull the grabbed point to a screen point (pixels), in the plane facing the camera.
-     * @param {number} x @param {number} y
+     * Pull the grabbed point to a screen point (pixels), in the plane facing the camera, at time
+     * `time` (a pointer event's timeStamp; a rigid body's throw is measured on it).
+     * @param {number} x @param {number} y @param {number} [time]
      */
-    dragTo(x, y) {
+    dragTo(x, y, time) {
         const g = this.grab;
         if (!g) return;
         const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
@@ -181,13 +203,13 @@ export class Grabber {
         const t = g.origin.clone().sub(a).dot(g.normal) / denom;
         const hit = a.add(dir.mulScalar(t));
         const d = hit.sub(g.origin);
-        g.drag.move([d.x, d.y, d.z]);
+        g.drag.move([d.x, d.y, d.z], time);
     }
 
-    /** Let go of the grabbed body. */
-    release() {
+    /** Let go of the grabbed body (at time `t`, a pointer event's timeStamp). @param {number} [t] */
+    release(t) {
         if (this.grab) {
-            this.grab.drag.release();
+            this.grab.drag.release(t);
             this.grab = null;
         }
     }
@@ -199,13 +221,13 @@ export class Grabber {
             this.orbiting = { x: e.clientX, y: e.clientY };
             return;
         }
-        this.dragTo(e.offsetX, e.offsetY);
+        this.dragTo(e.offsetX, e.offsetY, e.timeStamp);
     }
 
     /** @param {PointerEvent} e */
     up(e) {
         if (this.canvas.hasPointerCapture(e.pointerId)) this.canvas.releasePointerCapture(e.pointerId);
         this.orbiting = null;
-        this.release();
+        this.release(e.timeStamp);
     }
 }

@@ -10,12 +10,12 @@
 import * as pc from 'playcanvas';
 import initJolt from 'jolt-physics';
 import { RemapProbe } from '@gsverse/web/playcanvas/probe.js';
-import { PhysicsWorld, axisIndex, bounds, DEFAULT_BUDGET } from './physics.js';
+import { PhysicsWorld, axisIndex, DEFAULT_BUDGET } from './physics.js';
 import { DemoAsset } from './scene.js';
 import { OrbitCamera, Grabber } from './input.js';
 import { RemapTimer } from './gputimer.js';
 import { SliderDrive, Shake, CAP } from './controls.js';
-import { FrameWatch, physicsLabel, statsText } from './report.js';
+import { FrameWatch, physicsLabel, statsText, showErrorIn, hideErrorIn } from './report.js';
 import { AnimationPlayer, bindAnimationUi, showAnimationUi } from './player.js';
 
 const params = new URLSearchParams(location.search);
@@ -86,23 +86,9 @@ const animUi = () => ({
     play: /** @type {HTMLButtonElement} */ ($('anim-play')), time: input('anim-time'), label: $('anim-val'),
 });
 
-/** @param {unknown} err */
-function showError(err) {
-    const e = /** @type {any} */ (err);
-    const text = e?.name === 'AnchorError'
-        ? `Refused: ${e.message} [${e.code}]`
-        : `Error: ${e?.message ?? String(err)}`;
-    const box = $('error');
-    box.textContent = text;
-    box.dataset.code = e?.code ?? '';
-    box.classList.add('show');
-    console.error(err);
-}
-
-function hideError() {
-    $('error').classList.remove('show');
-    $('error').textContent = '';
-}
+/** Show an error (an AnchorError as a refusal) on the page. @param {unknown} err */
+const showError = (err) => showErrorIn($('error'), err);
+const hideError = () => hideErrorIn($('error'));
 
 /** The soft bodies of the current asset. */
 const softs = () => (current ? current.bodies.map((b) => b.soft) : []);
@@ -171,17 +157,7 @@ function startShake() {
 function drop(run = true) {
     if (!current || !world) return;
     resetAll();
-    if (current.isScene) {
-        current.lift(0.5 * current.sceneRestBounds().size[1]);
-    } else {
-        const rb = current.restBounds();
-        const lift = 0.5 * rb.size[1];
-        for (const b of current.bodies) {
-            b.soft.placeAt([0, lift, 0]);
-            b.soft.setGravity(1);
-        }
-        follow = true;
-    }
+    follow = !current.drop();
     dirty = true;
     if (run) {
         paused = false;
@@ -206,22 +182,7 @@ function frameAsset() {
         : current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
     const size = Math.max(...rb.size) || 1;
     state.axis = /** @type {0|1|2} */ (rb.size.indexOf(Math.max(...rb.size)));
-    const box = current.groundBox();
-    if (box) {
-        // the file's ground: its box, and the visible plane on its top face
-        world.setGroundBox(box.center, box.half, box.rotation);
-        if (ground) {
-            ground.setPosition(box.center[0], box.top, box.center[2]);
-            ground.setLocalScale(2 * box.half[0], 1, 2 * box.half[2]);
-        }
-    } else {
-        const groundY = rb.min[1] - 0.2 * rb.size[1];
-        world.setGround(groundY, 20 * size, [rb.center[0], rb.center[2]]);
-        if (ground) {
-            ground.setPosition(rb.center[0], groundY, rb.center[2]);
-            ground.setLocalScale(20 * size, 1, 20 * size);
-        }
-    }
+    current.placeGround(world, ground, rb);
     if (TEST) {
         orbit.yaw = 0;
         orbit.pitch = scene ? -20 : 0;
@@ -302,26 +263,8 @@ function info() {
     };
 }
 
-/**
- * The physics objects of a scene now: name, kind, the splat node's world position and rotation,
- * and the world bounds of its collider hull (rigid kinds) or anchor mesh (soft); the ground's top.
- */
-function objects() {
-    if (!current || !current.isScene) return null;
-    const out = [];
-    for (const { splat, rigid } of current.rigids) {
-        const p = splat.entity.getPosition(), q = splat.entity.getRotation();
-        const b = rigid.bounds();
-        out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: [p.x, p.y, p.z], rotation: [q.x, q.y, q.z, q.w],
-            min: b.min, max: b.max, velocity: rigid.velocity() });
-    }
-    for (const b of current.bodies) {
-        const p = b.splat.entity.getPosition(), r = bounds(b.soft.readAnchorVertices());
-        out.push({ name: b.splat.entity.name, kind: 'soft', node: b.splat.prim.node, position: [p.x, p.y, p.z], rotation: null,
-            min: r.min, max: r.max, velocity: null });
-    }
-    return { objects: out, groundTop: current.groundBox()?.top ?? null };
-}
+/** The physics objects of a scene now (DemoAsset.describe), or null. */
+const objects = () => current?.describe() ?? null;
 
 /** The stats panel's text. */
 function stats() {
@@ -560,10 +503,10 @@ const api = {
      * Where world points land on the canvas (CSS pixels, y down).
      * @param {number[][]} points
      */
-    toScreen: (points) => {
-        const cam = /** @type {any} */ (grabber?.camera.camera);
-        return points.map((p) => { const s = cam.worldToScreen(new pc.Vec3(p[0], p[1], p[2])); return [s.x, s.y]; });
-    },
+    toScreen: (points) => points.map((p) => {
+        const s = /** @type {any} */ (grabber?.camera.camera).worldToScreen(new pc.Vec3(p[0], p[1], p[2]));
+        return [s.x, s.y];
+    }),
     /** Current world-space size [x, y, z] of the anchor meshes. */
     extent: () => (current && current.bodies.length ? current.bounds().size : null),
     /** Pause (true) or resume (false) the physics. @param {boolean} [on] */
@@ -592,31 +535,19 @@ const api = {
     drag: async (options = {}) => {
         await ready;
         if (!current || !grabber || !current.bodies.length) throw new Error('no asset loaded');
-        const cam = /** @type {any} */ (grabber.camera.camera);
-        const soft = current.bodies[0].soft, p = soft.positions(), k = state.axis;
-        const c = soft.bounds().center;
-        let best = 0, bestScore = -Infinity;
-        for (let i = 0; i < soft.count; i++) {
-            const off = Math.hypot(...[0, 1, 2].filter((j) => j !== k).map((j) => p[3 * i + j] - c[j]));
-            const score = p[3 * i + k] - 0.5 * off;
-            if (score > bestScore) { bestScore = score; best = i; }
-        }
-        const s0 = cam.worldToScreen(new pc.Vec3(p[3 * best], p[3 * best + 1], p[3 * best + 2]));
-        const sc = cam.worldToScreen(new pc.Vec3(c[0], c[1], c[2]));
-        const dir = [s0.x - sc.x, s0.y - sc.y], len = Math.hypot(dir[0], dir[1]) || 1;
-        const pixels = options.pixels ?? 300, n = Math.max(1, options.frames ?? 3);
-        const to = [s0.x + pixels * dir[0] / len, s0.y + pixels * dir[1] / len];
+        const { from: s0, to } = grabber.farEnd(current.bodies[0].soft, state.axis, options.pixels ?? 300);
+        const n = Math.max(1, options.frames ?? 3);
         paused = false;
-        const grabbed = grabber.grabAt(s0.x, s0.y, !!options.moveWhole);
+        const grabbed = grabber.grabAt(s0[0], s0[1], !!options.moveWhole);
         if (grabbed) {
             for (let f = 1; f <= n; f++) {
-                grabber.dragTo(s0.x + (to[0] - s0.x) * f / n, s0.y + (to[1] - s0.y) * f / n);
+                grabber.dragTo(s0[0] + (to[0] - s0[0]) * f / n, s0[1] + (to[1] - s0[1]) * f / n);
                 await frames(1);
             }
             await frames(options.hold ?? 60);
             grabber.release();
         }
-        return { grabbed, from: [s0.x, s0.y], to };
+        return { grabbed, from: s0, to };
     },
     /**
      * What the page saw since the last call (or load): rendered frames, physics steps, refreshes

@@ -10,7 +10,9 @@
 //
 // A grabbed rigid body (RigidDrag) is pulled towards the pointer: every step its velocity is set
 // so that the grabbed point reaches the pointer's point within a few steps, and on release it
-// keeps the pointer's velocity over the last steps (a throw).
+// keeps the pointer's velocity over its last moves (a throw). That velocity is measured on the
+// pointer's own clock (the moves' times), not in physics steps: on a slow machine a frame runs
+// fewer steps than its time, and a pointer that moved fast must still throw fast.
 //
 // Like physics.js, the module takes its Jolt module from the PhysicsWorld and runs in the browser
 // and in Node alike.
@@ -19,8 +21,9 @@ import { LAYER_MOVING, LAYER_STATIC, bounds } from './physics.js';
 
 /** How many steps a grabbed point takes to reach the pointer (1: at once; more: softer). */
 const GRAB_STEPS = 4;
-/** Steps over which the pointer's velocity is averaged for a throw. */
-const THROW_STEPS = 5;
+/** The pointer's moves of this last stretch of time (ms) make the throw's velocity; a pointer
+ * that has not moved for 1.5 times that long throws nothing (it only lets go). */
+const THROW_WINDOW_MS = 200;
 /** The fastest a grabbed or thrown body moves, in scene sizes per second (the world's unit). */
 const MAX_SPEED = 6;
 /** Angular damping of a grabbed body per step (it swings, but does not spin up). */
@@ -226,8 +229,9 @@ export class RigidDrag {
     /**
      * @param {RigidObject} rigid
      * @param {number[]} grabbed the grabbed point, world
+     * @param {() => number} [clock] the pointer's clock (ms; default performance.now)
      */
-    constructor(rigid, grabbed) {
+    constructor(rigid, grabbed, clock = () => performance.now()) {
         this.rigid = rigid;
         const { translation: t, rotation: q } = rigid.transform();
         const inv = [-q[0], -q[1], -q[2], q[3]];
@@ -235,15 +239,22 @@ export class RigidDrag {
         this.local = rotate(inv, [grabbed[0] - t[0], grabbed[1] - t[1], grabbed[2] - t[2]]);
         this.origin = grabbed.slice();
         this.target = grabbed.slice();
-        /** @type {number[][]} the target at the last steps, for the throw velocity */
-        this.trail = [];
+        this.clock = clock;
+        /** @type {{t: number, target: number[]}[]} the last moves, for the throw velocity */
+        this.trail = [{ t: clock(), target: grabbed.slice() }];
         this.released = false;
         if (rigid.kind === 'rigid') rigid.drag = this;
     }
 
-    /** Move the hand to `origin + d` (world). @param {number[]} d */
-    move(d) {
+    /**
+     * Move the hand to `origin + d` (world), at time `t` of the pointer's clock (the pointer
+     * event's timeStamp: events a busy page handles together keep their own times).
+     * @param {number[]} d @param {number} [t]
+     */
+    move(d, t = this.clock()) {
         this.target = [this.origin[0] + d[0], this.origin[1] + d[1], this.origin[2] + d[2]];
+        this.trail.push({ t, target: this.target.slice() });
+        if (this.trail.length > 64) this.trail.shift();
     }
 
     /** Where the grabbed point is now (world). */
@@ -254,21 +265,26 @@ export class RigidDrag {
     }
 
     /**
-     * The hand's velocity over the last steps (world units per second).
-     * @param {number} dt
+     * The hand's velocity at `now` (world units per second): over its moves of the last
+     * THROW_WINDOW_MS before its last move, or over its last two moves where the page handles
+     * them further apart (a busy page); zero when it has not moved for longer than that.
+     * @param {number} [now]
      */
-    handVelocity(dt) {
-        const tr = this.trail;
-        if (tr.length < 2) return [0, 0, 0];
-        const a = tr[0], b = tr[tr.length - 1], span = (tr.length - 1) * dt;
-        return [(b[0] - a[0]) / span, (b[1] - a[1]) / span, (b[2] - a[2]) / span];
+    handVelocity(now = this.clock()) {
+        const tr = this.trail, n = tr.length;
+        if (n < 2) return [0, 0, 0];
+        const last = tr[n - 1], window = Math.max(THROW_WINDOW_MS, last.t - tr[n - 2].t);
+        if (now - last.t > 1.5 * window) return [0, 0, 0];
+        let first = n - 2;
+        while (first > 0 && tr[first - 1].t >= last.t - window) first--;
+        const span = (last.t - tr[first].t) / 1000;
+        if (!(span > 0)) return [0, 0, 0];
+        return [0, 1, 2].map((k) => (last.target[k] - tr[first].target[k]) / span);
     }
 
     /** One step held: a velocity that takes the grabbed point to the hand. @param {number} dt */
     step(dt) {
         if (this.released) return;
-        this.trail.push(this.target.slice());
-        if (this.trail.length > THROW_STEPS) this.trail.shift();
         const p = this.point(), u = this.rigid.world.unit;
         const v = [0, 1, 2].map((k) => (this.target[k] - p[k]) / (GRAB_STEPS * dt));
         const speed = Math.hypot(...v), cap = MAX_SPEED / u;
@@ -279,15 +295,16 @@ export class RigidDrag {
     }
 
     /**
-     * Let go: the body keeps the hand's velocity over the last steps (a throw).
-     * @param {number} [dt] the physics step
+     * Let go at time `t` (the pointer's clock): the body keeps the hand's velocity over its last
+     * moves (a throw).
+     * @param {number} [t]
      */
-    release(dt = 1 / 60) {
+    release(t = this.clock()) {
         if (this.released) return;
         this.released = true;
         if (this.rigid.drag !== this) return;
         this.rigid.drag = null;
-        const v = this.handVelocity(dt), u = this.rigid.world.unit;
+        const v = this.handVelocity(t), u = this.rigid.world.unit;
         const speed = Math.hypot(...v), cap = MAX_SPEED / u;
         const f = speed > cap ? cap / speed : 1;
         this.rigid.setVelocity(v.map((x) => x * f * u));

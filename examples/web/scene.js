@@ -334,6 +334,59 @@ export class DemoAsset {
         for (const b of this.bodies) b.soft.placeAt([0, dy, 0]);
     }
 
+    /**
+     * Drop: lift what moves and let it fall (gravity on). A scene lifts its dynamic rigid and soft
+     * bodies by half its height; an asset without records its soft bodies by half theirs.
+     * @returns {boolean} whether this is a scene (the camera stays; otherwise it follows the body)
+     */
+    drop() {
+        const rb = this.isScene ? this.sceneRestBounds() : this.restBounds();
+        this.lift(0.5 * rb.size[1]);
+        for (const b of this.bodies) b.soft.setGravity(1);
+        return this.isScene;
+    }
+
+    /**
+     * Place the physics ground and the visible `plane` (an entity, or null): the file's ground box
+     * when it has one (the plane on its top face), else a wide box a little below `rb` (bounds).
+     * @param {import('./physics.js').PhysicsWorld} world @param {any} plane
+     * @param {{center: number[], size: number[], min: number[]}} rb
+     */
+    placeGround(world, plane, rb) {
+        const box = this.groundBox();
+        if (box) {
+            world.setGroundBox(box.center, box.half, box.rotation);
+            plane?.setPosition(box.center[0], box.top, box.center[2]);
+            plane?.setLocalScale(2 * box.half[0], 1, 2 * box.half[2]);
+            return;
+        }
+        const size = Math.max(...rb.size) || 1, y = rb.min[1] - 0.2 * rb.size[1];
+        world.setGround(y, 20 * size, [rb.center[0], rb.center[2]]);
+        plane?.setPosition(rb.center[0], y, rb.center[2]);
+        plane?.setLocalScale(20 * size, 1, 20 * size);
+    }
+
+    /**
+     * The physics objects of a scene now (null for an asset without records): name, kind, the
+     * splat node's world position and rotation, the world bounds of its collider hull (rigid
+     * kinds) or anchor mesh (soft), the velocity of rigid ones; and the ground's top.
+     */
+    describe() {
+        if (!this.isScene) return null;
+        const out = [];
+        for (const { splat, rigid } of this.rigids) {
+            const p = splat.entity.getPosition(), q = splat.entity.getRotation(), b = rigid.bounds();
+            out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: [p.x, p.y, p.z],
+                rotation: [q.x, q.y, q.z, q.w], min: b.min, max: b.max, velocity: rigid.velocity() });
+        }
+        for (const b of this.bodies) {
+            const p = b.splat.entity.getPosition(), r = bounds(b.soft.readAnchorVertices());
+            out.push({ name: b.splat.entity.name, kind: 'soft', node: b.splat.prim.node, position: [p.x, p.y, p.z],
+                rotation: null, min: r.min, max: r.max, velocity: null });
+        }
+        return { objects: out, groundTop: this.groundBox()?.top ?? null };
+    }
+
     /** Back to the rest pose (physics and splats). */
     reset() {
         for (const b of this.bodies) {

@@ -104,19 +104,37 @@ test('a grabbed rigid body follows the hand and, let go, keeps the hand velocity
     const chair = objects.chair;
     step(120);
     const c0 = chair.bounds().center;
-    const drag = new RigidDrag(chair, c0);
+    let ms = 0;                                   // the pointer's clock: one move per step
+    const drag = new RigidDrag(chair, c0, () => ms);
     const v = [-1.2, 0.6, 0];                     // world units per second, away from the pillow
     for (let i = 1; i <= 20; i++) {
+        ms += 1000 * DT;
         drag.move(v.map((x) => x * i * DT));
         step(1);
     }
     const held = drag.point();
     assert.ok(Math.hypot(held[0] - (c0[0] + 20 * v[0] * DT), held[1] - (c0[1] + 20 * v[1] * DT)) < 0.1, `the grabbed point follows the hand: ${held}`);
-    drag.release(DT);
+    drag.release();
     const thrown = chair.velocity();
     assert.ok(Math.abs(thrown[0] - v[0]) < 1e-3 && Math.abs(thrown[1] - v[1]) < 1e-3, `the thrown body has the hand velocity: ${thrown}`);
     step(10);
     const c1 = chair.bounds().center;
+    // a hand that stopped moving well before letting go (0.4 s; 1.5 x 0.2 s) throws nothing
+    const again = new RigidDrag(chair, c1, () => ms);
+    ms += 1000 * DT;
+    again.move([-0.1, 0, 0]);
+    ms += 400;
+    again.release();
+    assert.deepEqual(chair.velocity().map((x) => Math.abs(x) < 1e-6), [true, true, true], `${chair.velocity()}`);
+    // a busy page handles the moves 0.6 s apart: the last two moves make the velocity
+    const busy = new RigidDrag(chair, chair.bounds().center, () => ms);
+    for (const x of [-0.1, -0.2]) {
+        ms += 600;
+        busy.move([x, 0, 0]);
+    }
+    ms += 100;
+    busy.release();
+    assert.ok(Math.abs(chair.velocity()[0] + 0.1 / 0.6) < 1e-3, `${chair.velocity()}`);
     // in the air for these 10 steps, it covers at least half the distance at the hand's speed
     assert.ok(c1[0] < held[0] + 0.5 * 10 * DT * v[0], `it flies on after the release: x ${held[0].toFixed(3)} -> ${c1[0].toFixed(3)}`);
 });
