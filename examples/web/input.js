@@ -116,7 +116,7 @@ export class Grabber {
         // a dynamic rigid body under the cursor (inside its hull's projected box), grabbed at the
         // depth of its centre, if it is in front of the soft vertex found
         for (const { rigid } of asset.rigids ?? []) {
-            if (rigid.kind !== 'rigid') continue;
+            if (rigid.kind !== 'rigid' || rigid.immovable) continue;
             const p = rigid.worldPoints();
             let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity, cz = 0, c = [0, 0, 0];
             for (let i = 0; i < p.length; i += 3) {

@@ -1,7 +1,8 @@
 // Rigid physics objects of a scene (the file's KHR_physics_rigid_bodies records, read by the
 // plugin's readPhysics): each a Jolt body in the demo's PhysicsWorld, beside the soft bodies.
 //
-//   rigid     -> a dynamic body, a ConvexHullShape from the collider hull;
+//   rigid     -> a dynamic body, a ConvexHullShape from the collider hull (a kinematic one that
+//                nothing moves when its mass is 0, infinite in the draft);
 //   kinematic -> a kinematic body (it stays: the demo plays no node animation);
 //   static    -> a static body.
 // The hull is in the splat node's local space; the body's shape is the hull scaled by the node's
@@ -108,7 +109,10 @@ export class RigidObject {
         }
         const shape = result.Get();
         Jolt.destroy(settings);
-        const motion = this.kind === 'rigid' ? Jolt.EMotionType_Dynamic : this.kind === 'kinematic' ? Jolt.EMotionType_Kinematic : Jolt.EMotionType_Static;
+        /** a rigid body of mass 0 (infinite in KHR_physics_rigid_bodies): nothing moves it */
+        this.immovable = this.kind === 'rigid' && object.motion?.mass === 0;
+        const motion = this.kind === 'rigid' && !this.immovable ? Jolt.EMotionType_Dynamic
+            : this.kind === 'static' ? Jolt.EMotionType_Static : Jolt.EMotionType_Kinematic;
         const pos = new Jolt.RVec3((translation[0] - o[0]) * u, (translation[1] - o[1]) * u, (translation[2] - o[2]) * u);
         const rot = new Jolt.Quat(rotation[0], rotation[1], rotation[2], rotation[3]);
         const cs = new Jolt.BodyCreationSettings(shape, pos, rot, motion, this.kind === 'static' ? LAYER_STATIC : LAYER_MOVING);
@@ -119,7 +123,7 @@ export class RigidObject {
         cs.mLinearDamping = 0.1;
         cs.mAngularDamping = 0.2;
         cs.mMaxLinearVelocity = 4 * MAX_SPEED;
-        if (this.kind === 'rigid' && object.motion?.mass) {
+        if (this.kind === 'rigid' && !this.immovable && object.motion?.mass) {
             cs.mOverrideMassProperties = Jolt.EOverrideMassProperties_CalculateInertia;
             cs.mMassPropertiesOverride.mMass = object.motion.mass;
         }
@@ -136,7 +140,7 @@ export class RigidObject {
     /** The file's initial velocities (node space, rotated into world). @private */
     setInitialVelocity() {
         const m = this.object.motion;
-        if (this.kind !== 'rigid' || !m) return;
+        if (this.kind !== 'rigid' || this.immovable || !m) return;
         const u = this.world.unit;
         const lin = rotate(this.start.rotation, m.linearVelocity), ang = rotate(this.start.rotation, m.angularVelocity);
         this.setVelocity(lin.map((x) => x * u), ang);
@@ -243,7 +247,7 @@ export class RigidDrag {
         /** @type {{t: number, target: number[]}[]} the last moves, for the throw velocity */
         this.trail = [{ t: clock(), target: grabbed.slice() }];
         this.released = false;
-        if (rigid.kind === 'rigid') rigid.drag = this;
+        if (rigid.kind === 'rigid' && !rigid.immovable) rigid.drag = this;
     }
 
     /**

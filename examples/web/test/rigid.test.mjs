@@ -138,3 +138,17 @@ test('a grabbed rigid body follows the hand and, let go, keeps the hand velocity
     // in the air for these 10 steps, it covers at least half the distance at the hand's speed
     assert.ok(c1[0] < held[0] + 0.5 * 10 * DT * v[0], `it flies on after the release: x ${held[0].toFixed(3)} -> ${c1[0].toFixed(3)}`);
 });
+
+test('a rigid body of mass 0 (infinite) does not move', { skip }, async () => {
+    const { readPhysics } = await import('../../../plugins/web/src/index.js');
+    const { world, step } = await buildScene();
+    const chairRecord = readPhysics(new Uint8Array(fs.readFileSync(SCENE))).objects.find((o) => o.name === 'chair');
+    const record = /** @type {any} */ ({ ...chairRecord, motion: { ...chairRecord?.motion, mass: 0 } });
+    const heavy = new RigidObject(world, record, record.matrix);
+    heavy.reset([0, 2, 0]);                       // in the air, above the scene
+    const y0 = heavy.transform().translation[1];
+    step(60);
+    assert.equal(heavy.immovable, true);
+    assert.equal(heavy.transform().translation[1], y0);
+    heavy.destroy();
+});

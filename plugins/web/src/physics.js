@@ -7,11 +7,13 @@
 //     identity transform) whose mesh is the convex hull in the splat node's local space;
 //   - `ground`: a node without a mesh whose collider is `geometry.shape = S`, S a box of
 //     `KHR_implicit_shapes` centred at the node's origin.
-// Records this reader cannot use are skipped, as the draft allows (triggers, joints, shapes of
-// other types, a collider without geometry); malformed ones are refused with AnchorError and the
-// gsverse-validate code (UNRESOLVED_REFERENCE, GLTF_SCHEMA_VIOLATION, NON_FINITE_VALUE).
+// Records this reader cannot use are skipped, as the draft allows (triggers, joints, the draft's
+// capsule, cylinder and plane shapes); malformed ones are refused with AnchorError and the
+// gsverse-validate code (spec/validation.md: PHYSICS_GEOMETRY_INVALID, PHYSICS_SHAPE_INVALID,
+// PHYSICS_MOTION_INVALID, PHYSICS_KIND_UNKNOWN, PHYSICS_SOFT_NOT_ANCHORED; GLTF_SCHEMA_VIOLATION
+// for a record that is not an object, NON_FINITE_VALUE for a hull vertex).
 
-import { AnchorError, KHR } from './anchor.js';
+import { AnchorError, EXTENSION, KHR } from './anchor.js';
 import { FLOAT, GltfError, globalMatrices, isIndex, mat4Multiply, nodeLocalMatrix, nodeParents, parseGltf } from './glb.js';
 
 export const RIGID_BODIES = 'KHR_physics_rigid_bodies';
@@ -19,6 +21,11 @@ export const IMPLICIT_SHAPES = 'KHR_implicit_shapes';
 /** The kinds of a physics object (`extras.gsverse.physics`). */
 export const PHYSICS_KINDS = /** @type {const} */ (['rigid', 'soft', 'kinematic', 'static']);
 const TRIANGLES = 4;
+/** The shape types of KHR_implicit_shapes; this reader builds box and sphere and skips the others. */
+const SHAPE_TYPES = ['box', 'sphere', 'capsule', 'cylinder', 'plane'];
+const MOTION = 'PHYSICS_MOTION_INVALID';
+const GEOMETRY = 'PHYSICS_GEOMETRY_INVALID';
+const SHAPE = 'PHYSICS_SHAPE_INVALID';
 
 /** @typedef {import('./types.js').PhysicsObject} PhysicsObject */
 /** @typedef {import('./types.js').PhysicsShape} PhysicsShape */
@@ -29,27 +36,26 @@ const TRIANGLES = 4;
 const isObject = (v) => typeof v === 'object' && v !== null && !Array.isArray(v);
 
 /**
- * A list of `n` finite numbers, or `fallback` when absent.
- * @param {unknown} v @param {number} n @param {string} what @param {number[]|null} fallback
+ * A list of `n` finite numbers, or `fallback` when absent; else `code`.
+ * @param {unknown} v @param {number} n @param {string} what @param {number[]|null} fallback @param {string} code
  * @returns {number[]|null}
  */
-function numbers(v, n, what, fallback) {
+function numbers(v, n, what, fallback, code) {
     if (v === undefined) return fallback;
-    if (!Array.isArray(v) || v.length !== n || v.some((x) => typeof x !== 'number')) {
-        throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what} must be an array of ${n} numbers`);
+    if (!Array.isArray(v) || v.length !== n || v.some((x) => typeof x !== 'number' || !Number.isFinite(x))) {
+        throw new GltfError(code, `${what} must be an array of ${n} finite numbers`);
     }
-    if (v.some((x) => !Number.isFinite(x))) throw new GltfError('NON_FINITE_VALUE', `${what} holds a non-finite value`);
     return v.slice();
 }
 
 /**
- * A finite number (≥ 0 when `nonNegative`), or `fallback` when absent.
- * @param {unknown} v @param {string} what @param {number|null} fallback @param {boolean} [nonNegative]
+ * A finite number (≥ 0 when `nonNegative`), or `fallback` when absent; else `code`.
+ * @param {unknown} v @param {string} what @param {number|null} fallback @param {string} code @param {boolean} [nonNegative]
  */
-function number(v, what, fallback, nonNegative = false) {
+function number(v, what, fallback, code, nonNegative = false) {
     if (v === undefined) return fallback;
     if (typeof v !== 'number' || !Number.isFinite(v) || (nonNegative && v < 0)) {
-        throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what} must be a finite number${nonNegative ? ' >= 0' : ''}`);
+        throw new GltfError(code, `${what} must be a finite number${nonNegative ? ' >= 0' : ''}`);
     }
     return v;
 }
@@ -61,17 +67,17 @@ function number(v, what, fallback, nonNegative = false) {
  */
 function readMotion(motion, what) {
     if (motion === undefined) return null;
-    if (!isObject(motion)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what} must be an object`);
+    if (!isObject(motion)) throw new GltfError(MOTION, `${what} must be an object`);
     const m = /** @type {any} */ (motion);
     if (m.isKinematic !== undefined && typeof m.isKinematic !== 'boolean') {
-        throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}.isKinematic must be a boolean`);
+        throw new GltfError(MOTION, `${what}.isKinematic must be a boolean`);
     }
     return {
         isKinematic: m.isKinematic === true,
-        mass: number(m.mass, `${what}.mass`, null, true),
-        gravityFactor: /** @type {number} */ (number(m.gravityFactor, `${what}.gravityFactor`, 1)),
-        linearVelocity: /** @type {number[]} */ (numbers(m.linearVelocity, 3, `${what}.linearVelocity`, [0, 0, 0])),
-        angularVelocity: /** @type {number[]} */ (numbers(m.angularVelocity, 3, `${what}.angularVelocity`, [0, 0, 0])),
+        mass: number(m.mass, `${what}.mass`, null, MOTION, true),
+        gravityFactor: /** @type {number} */ (number(m.gravityFactor, `${what}.gravityFactor`, 1, MOTION)),
+        linearVelocity: /** @type {number[]} */ (numbers(m.linearVelocity, 3, `${what}.linearVelocity`, [0, 0, 0], MOTION)),
+        angularVelocity: /** @type {number[]} */ (numbers(m.angularVelocity, 3, `${what}.angularVelocity`, [0, 0, 0], MOTION)),
     };
 }
 
@@ -83,9 +89,13 @@ function readMotion(motion, what) {
  * @param {() => Float64Array[]} matrices @param {Int32Array} parents
  */
 function readHull(doc, body, h, what, matrices, parents) {
-    const node = doc.item('nodes', h, `${what}.node`);
-    const mesh = doc.item('meshes', node.mesh, `nodes[${h}].mesh`);
-    const prims = Array.isArray(mesh.primitives) ? mesh.primitives : [];
+    const nodes = Array.isArray(doc.json.nodes) ? doc.json.nodes : [];
+    if (!isIndex(h) || h >= nodes.length || !isObject(nodes[h])) throw new GltfError(GEOMETRY, `${what}.node ${JSON.stringify(h)} does not exist (${nodes.length} nodes)`);
+    const node = nodes[h];
+    const meshes = Array.isArray(doc.json.meshes) ? doc.json.meshes : [];
+    const mesh = isIndex(node.mesh) && node.mesh < meshes.length ? meshes[node.mesh] : null;
+    const prims = isObject(mesh) && Array.isArray(mesh.primitives) ? mesh.primitives : [];
+    if (!prims.length) throw new GltfError(GEOMETRY, `${what}.node ${h} holds no collider mesh`);
     /** @type {number[]} */
     const vertices = [];
     /** @type {number[]} */
@@ -94,9 +104,9 @@ function readHull(doc, body, h, what, matrices, parents) {
     if (parents[h] >= 0) m = mat4Multiply(invertAffine(matrices()[body], what), matrices()[h]);
     prims.forEach((/** @type {any} */ prim, /** @type {number} */ p) => {
         const w = `meshes[${node.mesh}].primitives[${p}] (the collider of ${what})`;
-        if (!isObject(prim) || !isObject(prim.attributes)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${w} has no attributes`);
+        if (!isObject(prim) || !isObject(prim.attributes)) throw new GltfError(GEOMETRY, `${w} has no attributes`);
         const mode = prim.mode === undefined ? TRIANGLES : prim.mode;
-        if (mode !== TRIANGLES) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${w} must be TRIANGLES (4), not ${JSON.stringify(mode)}`);
+        if (mode !== TRIANGLES) throw new GltfError(GEOMETRY, `${w} must be TRIANGLES (4), not ${JSON.stringify(mode)}`);
         const pos = doc.raw(prim.attributes.POSITION, `${w}.POSITION`, ['VEC3'], 'GLTF_SCHEMA_VIOLATION');
         if (pos.componentType !== FLOAT) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${w}.POSITION must be FLOAT`);
         const base = vertices.length / 3;
@@ -119,7 +129,7 @@ function readHull(doc, body, h, what, matrices, parents) {
             }
         }
     });
-    if (!indices.length) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}: the collider mesh of node ${h} has no triangles`);
+    if (!indices.length) throw new GltfError(GEOMETRY, `${what}: the collider mesh of node ${h} has no triangles`);
     return { vertices: Float32Array.from(vertices), indices: Uint32Array.from(indices) };
 }
 
@@ -142,33 +152,45 @@ function invertAffine(m, what) {
 }
 
 /**
- * The implicit shape `s` as this reader uses it, or null for a type it does not know.
+ * The implicit shape `s` as this reader uses it, or null for a type of the draft it does not build.
  * @param {any} json @param {unknown} s @param {string} what
  * @returns {{type: 'box', size: number[]}|{type: 'sphere', radius: number}|null}
  */
 function readShape(json, s, what) {
     const shapes = json.extensions?.[IMPLICIT_SHAPES]?.shapes;
-    if (!Array.isArray(shapes) || !isIndex(s) || /** @type {number} */ (s) >= shapes.length || !isObject(shapes[/** @type {number} */ (s)])) {
-        throw new GltfError('UNRESOLVED_REFERENCE', `${what}.shape ${JSON.stringify(s)} names no shape of ${IMPLICIT_SHAPES}`);
+    if (!Array.isArray(shapes) || !isIndex(s) || /** @type {number} */ (s) >= shapes.length) {
+        throw new GltfError(GEOMETRY, `${what}.shape ${JSON.stringify(s)} names no shape of ${IMPLICIT_SHAPES}`);
     }
     const shape = shapes[/** @type {number} */ (s)];
     const w = `extensions.${IMPLICIT_SHAPES}.shapes[${s}]`;
+    if (!isObject(shape) || !SHAPE_TYPES.includes(shape.type)) {
+        throw new GltfError(SHAPE, `${w} has an unknown type ${JSON.stringify(shape?.type)} (${SHAPE_TYPES.join(', ')})`);
+    }
+    const params = shape[shape.type];
+    if (!isObject(params)) throw new GltfError(SHAPE, `${w} has no ${shape.type} object`);
     if (shape.type === 'box') {
-        const size = /** @type {number[]} */ (numbers(shape.box?.size, 3, `${w}.box.size`, [1, 1, 1]));
-        if (size.some((v) => v <= 0)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${w}.box.size must be positive`);
+        const size = /** @type {number[]} */ (numbers(params.size, 3, `${w}.box.size`, [1, 1, 1], SHAPE));
+        if (size.some((v) => v <= 0)) throw new GltfError(SHAPE, `${w}.box.size must be positive (degenerate)`);
         return { type: 'box', size };
     }
     if (shape.type === 'sphere') {
-        const radius = /** @type {number} */ (number(shape.sphere?.radius, `${w}.sphere.radius`, 0.5, true));
+        const radius = /** @type {number} */ (number(params.radius, `${w}.sphere.radius`, 0.5, SHAPE));
+        if (radius <= 0) throw new GltfError(SHAPE, `${w}.sphere.radius must be positive (degenerate)`);
         return { type: 'sphere', radius };
     }
     return null;
 }
 
-/** The mesh `m` holds a KHR_gaussian_splatting primitive. @param {any} json @param {unknown} m */
-function holdsSplats(json, m) {
+/**
+ * The mesh `m` holds a KHR_gaussian_splatting primitive (`anchored`: one with the anchor extension).
+ * @param {any} json @param {unknown} m @param {boolean} [anchored]
+ */
+function holdsSplats(json, m, anchored = false) {
     const mesh = isIndex(m) && Array.isArray(json.meshes) ? json.meshes[/** @type {number} */ (m)] : null;
-    return !!mesh && Array.isArray(mesh.primitives) && mesh.primitives.some((/** @type {any} */ p) => p?.extensions?.[KHR] !== undefined);
+    return !!mesh && Array.isArray(mesh.primitives) && mesh.primitives.some((/** @type {any} */ p) => {
+        const khr = p?.extensions?.[KHR];
+        return khr !== undefined && (!anchored || khr?.extensions?.[EXTENSION] !== undefined);
+    });
 }
 
 /**
@@ -202,21 +224,27 @@ export function readPhysics(input, options = {}) {
             const what = `nodes[${i}].extensions.${RIGID_BODIES}`;
             if (!isObject(record)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what} must be an object`);
             const motion = readMotion(record.motion, `${what}.motion`);
+            const tag = node?.extras?.gsverse?.physics;
+            if (tag !== undefined && !PHYSICS_KINDS.includes(tag)) {
+                throw new GltfError('PHYSICS_KIND_UNKNOWN', `nodes[${i}].extras.gsverse.physics ${JSON.stringify(tag)} is not one of ${PHYSICS_KINDS.join(', ')}`);
+            }
+            if (tag === 'soft' && !holdsSplats(json, node.mesh, true)) {
+                throw new GltfError('PHYSICS_SOFT_NOT_ANCHORED', `nodes[${i}] is a soft body but holds no anchored splat primitive`);
+            }
             const collider = record.collider;
             if (collider === undefined) return;                  // a trigger or a joint only
-            if (!isObject(collider)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}.collider must be an object`);
-            const geometry = collider.geometry;
-            if (geometry === undefined) return;
-            if (!isObject(geometry)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}.collider.geometry must be an object`);
             const gw = `${what}.collider.geometry`;
-            const tag = node?.extras?.gsverse?.physics;
+            const geometry = isObject(collider) ? collider.geometry : undefined;
+            if (!isObject(geometry) || (geometry.node === undefined) === (geometry.shape === undefined)) {
+                throw new GltfError(GEOMETRY, `${gw} must name exactly one of node and shape`);
+            }
             /** @type {PhysicsObject['kind']} */
             const kind = tag === 'soft' && motion ? 'soft' : !motion ? 'static' : motion.isKinematic ? 'kinematic' : 'rigid';
             const label = typeof node.name === 'string' ? node.name : `node ${i}`;
             if (holdsSplats(json, node.mesh)) {
                 if (geometry.node === undefined) return;      // an implicit shape on splats: not read here
                 if (geometry.convexHull !== undefined && typeof geometry.convexHull !== 'boolean') {
-                    throw new GltfError('GLTF_SCHEMA_VIOLATION', `${gw}.convexHull must be a boolean`);
+                    throw new GltfError(GEOMETRY, `${gw}.convexHull must be a boolean`);
                 }
                 parents = parents || nodeParents(json);
                 const hull = readHull(doc, i, /** @type {number} */ (geometry.node), gw, matrices, parents);
@@ -226,7 +254,7 @@ export function readPhysics(input, options = {}) {
                 });
             } else if (geometry.shape !== undefined) {
                 const shape = readShape(json, geometry.shape, gw);
-                if (!shape) return;                           // a shape type this reader does not know
+                if (!shape) return;                           // capsule, cylinder, plane: not built here
                 shapes.push({ node: i, name: label, kind, matrix: matrices()[i], shape: /** @type {number} */ (geometry.shape), ...shape });
             }
         });

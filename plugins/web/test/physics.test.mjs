@@ -111,29 +111,41 @@ test('an asset without physics records: empty lists', () => {
 });
 
 test('records the reader cannot use are skipped, as the draft allows', () => {
-    // a trigger (no collider), a collider without geometry, an unknown shape type
-    for (const patch of [
-        (/** @type {any} */ j) => { j.nodes[0].extensions[RIGID_BODIES] = { trigger: { geometry: { node: 1 } } }; },
-        (/** @type {any} */ j) => { j.nodes[0].extensions[RIGID_BODIES] = { motion: {}, collider: {} }; },
-    ]) {
-        assert.equal(readPhysics(scene({ patch })).objects.length, 0);
-    }
-    const p = readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0] = { type: 'pyramid', pyramid: {} }; } }));
+    // a trigger (no collider)
+    const trigger = (/** @type {any} */ j) => { j.nodes[0].extensions[RIGID_BODIES] = { trigger: { geometry: { node: 1 } } }; };
+    assert.equal(readPhysics(scene({ patch: trigger })).objects.length, 0);
+    // a shape type of the draft this reader does not build
+    const p = readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0] = { type: 'capsule', capsule: { radiusTop: 1, radiusBottom: 1, height: 1 } }; } }));
     assert.equal(p.shapes.length, 0);
     assert.equal(p.objects.length, 1);
+    // a sphere is read
+    const q = readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0] = { type: 'sphere', sphere: { radius: 2 } }; } }));
+    assert.equal(q.shapes[0].type, 'sphere');
+    assert.equal(q.shapes[0].radius, 2);
 });
 
-test('malformed records are refused with their code', () => {
+test('malformed records are refused with the gsverse-validate code', () => {
     const name = { name: 'scene.glb' };
+    const geometry = (/** @type {any} */ g) => ({ motion: {}, collider: { geometry: g } });
     refuses(() => readPhysics(scene({ record: 3 }), name), 'GLTF_SCHEMA_VIOLATION', /must be an object/);
-    refuses(() => readPhysics(scene({ record: { motion: { isKinematic: 'yes' }, collider: { geometry: { node: 1 } } } }), name), 'GLTF_SCHEMA_VIOLATION', /isKinematic/);
-    refuses(() => readPhysics(scene({ record: { motion: { mass: -1 }, collider: { geometry: { node: 1 } } } }), name), 'GLTF_SCHEMA_VIOLATION', /mass/);
-    refuses(() => readPhysics(scene({ record: { motion: { linearVelocity: [0, 1] }, collider: { geometry: { node: 1 } } } }), name), 'GLTF_SCHEMA_VIOLATION', /linearVelocity/);
-    refuses(() => readPhysics(scene({ record: { motion: {}, collider: { geometry: { node: 9 } } } }), name), 'UNRESOLVED_REFERENCE', /node/);
-    refuses(() => readPhysics(scene({ patch: (j) => { j.nodes[2].extensions[RIGID_BODIES].collider.geometry.shape = 4; } }), name), 'UNRESOLVED_REFERENCE', /shape 4/);
-    refuses(() => readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0].box.size = [1, 0, 1]; } }), name), 'GLTF_SCHEMA_VIOLATION', /positive/);
-    refuses(() => readPhysics(scene({ patch: (j) => { j.meshes[2].primitives[0].mode = 0; } }), name), 'GLTF_SCHEMA_VIOLATION', /TRIANGLES/);
+    refuses(() => readPhysics(scene({ record: { motion: { isKinematic: 'yes' }, collider: { geometry: { node: 1 } } } }), name), 'PHYSICS_MOTION_INVALID', /isKinematic/);
+    refuses(() => readPhysics(scene({ record: { motion: { mass: -1 }, collider: { geometry: { node: 1 } } } }), name), 'PHYSICS_MOTION_INVALID', /mass/);
+    refuses(() => readPhysics(scene({ record: { motion: { linearVelocity: [0, 1] }, collider: { geometry: { node: 1 } } } }), name), 'PHYSICS_MOTION_INVALID', /linearVelocity/);
+    refuses(() => readPhysics(scene({ record: { motion: { gravityFactor: 'x' }, collider: { geometry: { node: 1 } } } }), name), 'PHYSICS_MOTION_INVALID', /gravityFactor/);
+    refuses(() => readPhysics(scene({ record: geometry({ node: 9 }) }), name), 'PHYSICS_GEOMETRY_INVALID', /node 9 does not exist/);
+    refuses(() => readPhysics(scene({ record: geometry({ node: 2 }) }), name), 'PHYSICS_GEOMETRY_INVALID', /holds no collider mesh/);
+    refuses(() => readPhysics(scene({ record: geometry({ node: 1, shape: 0 }) }), name), 'PHYSICS_GEOMETRY_INVALID', /exactly one/);
+    refuses(() => readPhysics(scene({ record: { motion: {}, collider: {} } }), name), 'PHYSICS_GEOMETRY_INVALID', /exactly one/);
+    refuses(() => readPhysics(scene({ patch: (j) => { j.nodes[2].extensions[RIGID_BODIES].collider.geometry.shape = 4; } }), name), 'PHYSICS_GEOMETRY_INVALID', /shape 4/);
+    refuses(() => readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0].box.size = [1, 0, 1]; } }), name), 'PHYSICS_SHAPE_INVALID', /positive/);
+    refuses(() => readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0] = { type: 'pyramid', pyramid: {} }; } }), name), 'PHYSICS_SHAPE_INVALID', /unknown type/);
+    refuses(() => readPhysics(scene({ patch: (j) => { j.extensions[IMPLICIT_SHAPES].shapes[0] = { type: 'box' }; } }), name), 'PHYSICS_SHAPE_INVALID', /no box object/);
+    refuses(() => readPhysics(scene({ patch: (j) => { j.meshes[2].primitives[0].mode = 0; } }), name), 'PHYSICS_GEOMETRY_INVALID', /TRIANGLES/);
     refuses(() => readPhysics(scene({ patch: (j) => { j.accessors[j.meshes[2].primitives[0].indices].count = 4; } }), name), 'GLTF_SCHEMA_VIOLATION', /multiple of 3/);
+    refuses(() => readPhysics(scene({ kind: 'squishy' }), name), 'PHYSICS_KIND_UNKNOWN', /squishy/);
+    // soft on a node whose splats are not anchored
+    refuses(() => readPhysics(scene({ kind: 'soft', patch: (j) => { delete j.meshes[0].primitives[0].extensions.KHR_gaussian_splatting.extensions; } }), name),
+        'PHYSICS_SOFT_NOT_ANCHORED', /soft body/);
 });
 
 test('a hull index out of range is refused', () => {
