@@ -2,7 +2,8 @@
 // (splats remapped on the GPU), turns each anchor mesh into a Jolt soft body, and lets the user
 // stretch, twist, shake and drop it. `window.gsverseDemo` is a scripted API for tests.
 //
-// URL parameters: ?asset=URL (default: the asset the server names in /config.json),
+// URL parameters: ?asset=URL (default: the asset the server names in /config.json; the shipped
+// physics scene is ?asset=scene.glb),
 // ?test (fixed front camera, plain background, no panel or ground, physics paused: for
 // deterministic screenshots), ?physics=surface and ?budget=N (the physics mesh, see physmesh.js).
 
@@ -14,7 +15,7 @@ import { DemoAsset } from './scene.js';
 import { OrbitCamera, Grabber } from './input.js';
 import { RemapTimer } from './gputimer.js';
 import { SliderDrive, Shake, CAP } from './controls.js';
-import { FrameWatch, physicsLabel, statsText } from './report.js';
+import { FrameWatch, physicsLabel, statsText, showErrorIn, hideErrorIn } from './report.js';
 import { AnimationPlayer, bindAnimationUi, showAnimationUi } from './player.js';
 
 const params = new URLSearchParams(location.search);
@@ -85,23 +86,9 @@ const animUi = () => ({
     play: /** @type {HTMLButtonElement} */ ($('anim-play')), time: input('anim-time'), label: $('anim-val'),
 });
 
-/** @param {unknown} err */
-function showError(err) {
-    const e = /** @type {any} */ (err);
-    const text = e?.name === 'AnchorError'
-        ? `Refused: ${e.message} [${e.code}]`
-        : `Error: ${e?.message ?? String(err)}`;
-    const box = $('error');
-    box.textContent = text;
-    box.dataset.code = e?.code ?? '';
-    box.classList.add('show');
-    console.error(err);
-}
-
-function hideError() {
-    $('error').classList.remove('show');
-    $('error').textContent = '';
-}
+/** Show an error (an AnchorError as a refusal) on the page. @param {unknown} err */
+const showError = (err) => showErrorIn($('error'), err);
+const hideError = () => hideErrorIn($('error'));
 
 /** The soft bodies of the current asset. */
 const softs = () => (current ? current.bodies.map((b) => b.soft) : []);
@@ -125,7 +112,7 @@ function resetAll() {
     showSliders(1, 0);
     current?.reset();
     if (current && orbit && current.bodies.length) {
-        const c = current.restBounds().center;
+        const c = (current.isScene ? current.sceneRestBounds() : current.restBounds()).center;
         orbit.target.set(c[0], c[1], c[2]);
         orbit.apply();
     }
@@ -162,18 +149,20 @@ function startShake() {
     shake = new Shake(softs(), state.axis);
 }
 
-function drop() {
+/**
+ * Drop: the soft bodies (and, in a physics scene, the dynamic rigid bodies) are lifted by half
+ * the height of what they make up and fall onto the ground.
+ * @param {boolean} [run] start the physics (default); false leaves it paused (scripted steps)
+ */
+function drop(run = true) {
     if (!current || !world) return;
     resetAll();
-    const rb = current.restBounds();
-    const lift = 0.5 * rb.size[1];
-    for (const b of current.bodies) {
-        b.soft.placeAt([0, lift, 0]);
-        b.soft.setGravity(1);
+    follow = !current.drop();
+    dirty = true;
+    if (run) {
+        paused = false;
+        $('pause').textContent = 'pause';
     }
-    paused = false;
-    follow = true;
-    $('pause').textContent = 'pause';
 }
 
 /** One fixed physics step of the current asset, with whatever holds it. */
@@ -188,19 +177,16 @@ function physicsStep() {
 /** Place the camera and the ground for the current asset. */
 function frameAsset() {
     if (!current || !orbit || !world) return;
-    const rb = current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
+    const scene = current.isScene;
+    const rb = scene ? current.sceneRestBounds()
+        : current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
     const size = Math.max(...rb.size) || 1;
     state.axis = /** @type {0|1|2} */ (rb.size.indexOf(Math.max(...rb.size)));
-    const groundY = rb.min[1] - 0.2 * rb.size[1];
-    world.setGround(groundY, 20 * size, [rb.center[0], rb.center[2]]);
-    if (ground) {
-        ground.setPosition(rb.center[0], groundY, rb.center[2]);
-        ground.setLocalScale(20 * size, 1, 20 * size);
-    }
+    current.placeGround(world, ground, rb);
     if (TEST) {
         orbit.yaw = 0;
-        orbit.pitch = 0;
-        orbit.frame(rb.center, 1.9 * size);
+        orbit.pitch = scene ? -20 : 0;
+        orbit.frame(rb.center, (scene ? 1.5 : 1.9) * size);
     } else {
         orbit.yaw = 25;
         orbit.pitch = -15;
@@ -248,7 +234,8 @@ async function open(source, name) {
     assetLabel = `${name}: ${c.anchored} anchored splats${c.plain ? `, ${c.plain} plain` : ''}`;
     $('asset').textContent = assetLabel;
     $('asset').title = meshes.join('\n');
-    if (current.bodies.length === 0) showError(new Error(`${name}: no anchored splat primitive (plain splats are shown; nothing to deform)`));
+    if (current.bodies.length === 0 && current.rigids.length === 0) showError(new Error(`${name}: no anchored splat primitive (plain splats are shown; nothing to deform)`));
+    if (current.isScene && !TEST) drop();       // the objects of a physics scene fall when it opens
     dirty = true;
     await frames(3);
     return info();
@@ -263,6 +250,7 @@ function info() {
             physics: b.soft.kind, physicsVertices: b.soft.simCount, grid: b.soft.physics.grid?.cells ?? null, why: b.soft.physics.reason,
             guardTrips: b.soft.guardTrips,
         })) ?? [],
+        objects: objects(),
         axis: 'xyz'[state.axis],
         backend,
         software,
@@ -274,6 +262,9 @@ function info() {
         paused,
     };
 }
+
+/** The physics objects of a scene now (DemoAsset.describe), or null. */
+const objects = () => current?.describe() ?? null;
 
 /** The stats panel's text. */
 function stats() {
@@ -410,6 +401,9 @@ function bindUi() {
         $('pause').textContent = paused ? 'resume' : 'pause';
     });
     $('error').addEventListener('click', hideError);
+    for (const [id, file] of [['open-capsule', 'capsule.glb'], ['open-scene', 'scene.glb']]) {
+        $(id).addEventListener('click', () => { open(`/${file}`, file).catch(() => {}); });
+    }
     bindAnimationUi(player, animUi(), () => { dirty = true; });
     const overlay = $('drop');
     window.addEventListener('dragover', (e) => { e.preventDefault(); overlay.classList.add('show'); });
@@ -486,13 +480,41 @@ const api = {
         await frames(2);
         return api.extent();
     },
+    /**
+     * Run the physics `steps` fixed steps of 1/60 s now (deterministic: no wall clock; the
+     * physics is paused afterwards), hand the result to the splats, and return the scene's
+     * objects (see `objects`).
+     * @param {number} steps
+     */
+    simulate: async (steps) => {
+        await ready;
+        if (!current) throw new Error('no asset loaded');
+        paused = true;
+        $('pause').textContent = 'resume';
+        for (let i = 0; i < steps; i++) physicsStep();
+        current.sync(player.pose());
+        dirty = false;
+        await frames(2);
+        return objects();
+    },
+    /** The physics objects of a scene now (null for an asset without physics records). */
+    objects,
+    /**
+     * Where world points land on the canvas (CSS pixels, y down).
+     * @param {number[][]} points
+     */
+    toScreen: (points) => points.map((p) => {
+        const s = /** @type {any} */ (grabber?.camera.camera).worldToScreen(new pc.Vec3(p[0], p[1], p[2]));
+        return [s.x, s.y];
+    }),
     /** Current world-space size [x, y, z] of the anchor meshes. */
     extent: () => (current && current.bodies.length ? current.bounds().size : null),
     /** Pause (true) or resume (false) the physics. @param {boolean} [on] */
     pause: (on = true) => { paused = !!on; $('pause').textContent = paused ? 'resume' : 'pause'; return paused; },
     /** Open an asset by URL or bytes. @param {string|Uint8Array} source @param {string} [name] */
     load: (source, name) => open(source, name || (typeof source === 'string' ? source.split('/').pop() || 'asset.glb' : 'asset.glb')),
-    drop,
+    /** Drop (see drop); `run: false` leaves the physics paused. @param {boolean} [run] */
+    drop: (run = true) => drop(run !== false),
     shake: () => { paused = false; startShake(); },
     /**
      * Move the stretch slider to `value` the way a person does (the slider's input event): the
@@ -513,31 +535,19 @@ const api = {
     drag: async (options = {}) => {
         await ready;
         if (!current || !grabber || !current.bodies.length) throw new Error('no asset loaded');
-        const cam = /** @type {any} */ (grabber.camera.camera);
-        const soft = current.bodies[0].soft, p = soft.positions(), k = state.axis;
-        const c = soft.bounds().center;
-        let best = 0, bestScore = -Infinity;
-        for (let i = 0; i < soft.count; i++) {
-            const off = Math.hypot(...[0, 1, 2].filter((j) => j !== k).map((j) => p[3 * i + j] - c[j]));
-            const score = p[3 * i + k] - 0.5 * off;
-            if (score > bestScore) { bestScore = score; best = i; }
-        }
-        const s0 = cam.worldToScreen(new pc.Vec3(p[3 * best], p[3 * best + 1], p[3 * best + 2]));
-        const sc = cam.worldToScreen(new pc.Vec3(c[0], c[1], c[2]));
-        const dir = [s0.x - sc.x, s0.y - sc.y], len = Math.hypot(dir[0], dir[1]) || 1;
-        const pixels = options.pixels ?? 300, n = Math.max(1, options.frames ?? 3);
-        const to = [s0.x + pixels * dir[0] / len, s0.y + pixels * dir[1] / len];
+        const { from: s0, to } = grabber.farEnd(current.bodies[0].soft, state.axis, options.pixels ?? 300);
+        const n = Math.max(1, options.frames ?? 3);
         paused = false;
-        const grabbed = grabber.grabAt(s0.x, s0.y, !!options.moveWhole);
+        const grabbed = grabber.grabAt(s0[0], s0[1], !!options.moveWhole);
         if (grabbed) {
             for (let f = 1; f <= n; f++) {
-                grabber.dragTo(s0.x + (to[0] - s0.x) * f / n, s0.y + (to[1] - s0.y) * f / n);
+                grabber.dragTo(s0[0] + (to[0] - s0[0]) * f / n, s0[1] + (to[1] - s0[1]) * f / n);
                 await frames(1);
             }
             await frames(options.hold ?? 60);
             grabber.release();
         }
-        return { grabbed, from: [s0.x, s0.y], to };
+        return { grabbed, from: s0, to };
     },
     /**
      * What the page saw since the last call (or load): rendered frames, physics steps, refreshes

@@ -22,8 +22,10 @@ import { bounds, buildPhysicsMesh, applyEmbedding } from './physmesh.js';
 
 export { bounds, weldVertices, weldFaces, isClosed, coreVertices, buildPhysicsMesh, DEFAULT_BUDGET } from './physmesh.js';
 
-const LAYER_STATIC = 0;
-const LAYER_MOVING = 1;
+/** Jolt object layers: static bodies (the ground) collide with moving ones (soft bodies, rigid
+ * and kinematic bodies), moving ones with each other. */
+export const LAYER_STATIC = 0;
+export const LAYER_MOVING = 1;
 /** Stability defaults, in rest diagonals of the body (per second): how fast pinned vertices move
  * towards their targets, the speed cap of every vertex, and the extent at which the guard puts a
  * body back to rest (see README, "Stability"). */
@@ -106,17 +108,28 @@ export class PhysicsWorld {
      * @param {number[]} [center] x and z of the box's centre
      */
     setGround(y, halfWidth = 50, center = [0, 0]) {
+        const h = Math.max(halfWidth * this.unit, 1e-3) / this.unit;
+        this.setGroundBox([center[0], y - 0.5 * h, center[1]], [h, 0.5 * h, h]);
+        this.groundY = y;
+    }
+
+    /**
+     * Place the static ground box: its centre, half extents along its axes and rotation
+     * (x, y, z, w), all in world space (a scene's `ground` node: KHR_implicit_shapes box).
+     * @param {number[]} center @param {number[]} half @param {number[]} [rotation]
+     */
+    setGroundBox(center, half, rotation = [0, 0, 0, 1]) {
         const Jolt = this.Jolt;
         if (this.ground) {
             this.bodies.RemoveBody(this.ground.GetID());
             this.bodies.DestroyBody(this.ground.GetID());
         }
-        this.groundY = y;
         const u = this.unit, o = this.origin;
-        const h = Math.max(halfWidth * u, 1e-3), t = 0.5 * h;
-        const shape = new Jolt.BoxShape(new Jolt.Vec3(h, t, h), Math.min(0.05, 0.1 * t), null);
-        const cs = new Jolt.BodyCreationSettings(shape, new Jolt.RVec3((center[0] - o[0]) * u, (y - o[1]) * u - t, (center[1] - o[2]) * u),
-            new Jolt.Quat(0, 0, 0, 1),
+        const hx = Math.max(half[0] * u, 1e-3), hy = Math.max(half[1] * u, 1e-3), hz = Math.max(half[2] * u, 1e-3);
+        this.groundY = center[1] + half[1];
+        const shape = new Jolt.BoxShape(new Jolt.Vec3(hx, hy, hz), Math.min(0.05, 0.1 * Math.min(hx, hy, hz)), null);
+        const cs = new Jolt.BodyCreationSettings(shape, new Jolt.RVec3((center[0] - o[0]) * u, (center[1] - o[1]) * u, (center[2] - o[2]) * u),
+            new Jolt.Quat(rotation[0], rotation[1], rotation[2], rotation[3]),
             Jolt.EMotionType_Static, LAYER_STATIC);
         cs.mFriction = 0.8;
         this.ground = this.bodies.CreateBody(cs);

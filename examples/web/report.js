@@ -1,6 +1,6 @@
-// What the page reports: the stats panel's text (each figure with what it measures) and the
+// What the page reports: the stats panel's text (each figure with what it measures), the
 // per-frame record behind `gsverseDemo.monitor` (frames, physics steps, sort refreshes and the
-// anchor meshes' extent), which the stability test reads.
+// anchor meshes' extent), which the stability test reads, and the error box.
 
 /** @typedef {import('./scene.js').DemoAsset} DemoAsset */
 /** @typedef {import('./gputimer.js').RemapTimer} RemapTimer */
@@ -96,4 +96,22 @@ export function statsText(s) {
     const shortBackend = software ? 'WebGL2 · software rasterizer (SwiftShader)' : s.backend;
     lines.push(`${s.fps} fps · ${shortBackend}${s.paused ? ' · paused' : ''}`);
     return lines.join('\n');
+}
+
+/**
+ * Show an error in `box`: a refused asset (AnchorError) with its code, anything else as an error.
+ * @param {HTMLElement} box @param {unknown} err
+ */
+export function showErrorIn(box, err) {
+    const e = /** @type {any} */ (err);
+    box.textContent = e?.name === 'AnchorError' ? `Refused: ${e.message} [${e.code}]` : `Error: ${e?.message ?? String(err)}`;
+    box.dataset.code = e?.code ?? '';
+    box.classList.add('show');
+    console.error(err);
+}
+
+/** Hide the error box. @param {HTMLElement} box */
+export function hideErrorIn(box) {
+    box.classList.remove('show');
+    box.textContent = '';
 }

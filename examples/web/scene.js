@@ -5,9 +5,16 @@
 // body's embedding (physmesh.js), taken to the splat's local space with the inverse of the splat
 // entity's world matrix, and handed to AnchoredSplat.setVertices; the remap pass moves the splats
 // on the next frame. Plain (unanchored) splats of the asset are never touched.
+//
+// A scene with physics records (the plugin's readPhysics: KHR_physics_rigid_bodies) builds its
+// objects by kind in the same world: soft -> the soft body above (with gravity), rigid, kinematic
+// and static -> a Jolt rigid body (rigid.js) that drives the splat node's transform (no remap);
+// its ground box replaces the demo's own ground. An asset without records is all soft bodies.
 
 import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
+import { readPhysics } from '@gsverse/web';
 import { SoftBodyMesh, bounds } from './physics.js';
+import { RigidObject, decomposeAffine } from './rigid.js';
 
 /**
  * Column-major 4x4 times points (3N), into `out`.
@@ -88,9 +95,16 @@ export class DemoAsset {
      * @param {import('./physics.js').SoftBodyOptions} [physics] soft-body options (physics mesh kind, budget, ...)
      */
     static async load(app, world, source, name, physics = {}) {
-        const loaded = await loadAnchoredAsset(app, source, { name });
+        let bytes = source;
+        if (typeof source === 'string') {
+            const response = await fetch(source);
+            if (!response.ok) throw new Error(`${source}: HTTP ${response.status}`);
+            bytes = new Uint8Array(await response.arrayBuffer());
+        }
+        const records = readPhysics(/** @type {Uint8Array} */ (bytes), { name });     // refusals throw here
+        const loaded = await loadAnchoredAsset(app, bytes, { name });
         try {
-            return new DemoAsset(app, world, loaded, name, physics);
+            return new DemoAsset(app, world, loaded, name, physics, records);
         } catch (err) {
             for (const s of loaded.anchored) s.destroy();
             loaded.root.destroy();
@@ -108,8 +122,9 @@ export class DemoAsset {
      * @param {{root: any, anchored: any[], plain: any[], asset: any, animations?: {index: number, name: string, duration: number}[]}} loaded
      * @param {string} name
      * @param {import('./physics.js').SoftBodyOptions} [physics]
+     * @param {import('@gsverse/web').PhysicsScene} [records] the file's physics records
      */
-    constructor(app, world, loaded, name, physics = {}) {
+    constructor(app, world, loaded, name, physics = {}, records = { objects: [], shapes: [] }) {
         this.app = app;
         this.world = world;
         this.name = name;
@@ -118,8 +133,14 @@ export class DemoAsset {
         this.plain = loaded.plain;
         /** the file's animations of its animated anchor meshes ([] when none) */
         this.animations = loaded.animations ?? [];
-        /** @type {Body[]} */
+        /** @type {Body[]} the soft bodies */
         this.bodies = [];
+        /** @type {{splat: any, rigid: RigidObject}[]} the rigid, kinematic and static objects */
+        this.rigids = [];
+        /** whether the file has physics records: a scene (gravity on, its own ground) */
+        this.isScene = records.objects.length > 0 || records.shapes.length > 0;
+        /** the file's static ground boxes */
+        this.grounds = records.shapes.filter((g) => g.type === 'box' && g.kind === 'static');
         // one simulation frame for the whole asset: about one unit large, centred
         const all = [], before = { origin: world.origin, unit: world.unit };
         for (const splat of loaded.anchored) {
@@ -131,10 +152,12 @@ export class DemoAsset {
             world.setFrame(b.center, 1 / (Math.max(...b.size) || 1));
         }
         try {
-            this.build(world, loaded.anchored, physics);
+            this.build(world, loaded.anchored, physics, records);
         } catch (err) {
             for (const b of this.bodies) b.soft.destroy();
+            for (const r of this.rigids) r.rigid.destroy();
             this.bodies = [];
+            this.rigids = [];
             world.setFrame(before.origin, before.unit);     // the current asset's bodies live in it
             throw err;
         }
@@ -145,15 +168,22 @@ export class DemoAsset {
      * @param {import('./physics.js').PhysicsWorld} world
      * @param {any[]} anchored AnchoredSplat[]
      * @param {import('./physics.js').SoftBodyOptions} physics
+     * @param {import('@gsverse/web').PhysicsScene} records
      * @private
      */
-    build(world, anchored, physics) {
+    build(world, anchored, physics, records) {
         for (const splat of anchored) {
             const toWorld = Float64Array.from(splat.entity.getWorldTransform().data);
+            const object = records.objects.find((o) => o.node === splat.prim.node);
+            if (object && object.kind !== 'soft') {
+                this.rigids.push({ splat, rigid: new RigidObject(world, object, toWorld) });
+                continue;
+            }
             const mesh = splat.prim.anchorMesh;
             const worldVerts = transformPoints(toWorld, mesh.vertices, new Float32Array(mesh.vertices.length));
             const soft = new SoftBodyMesh(world, { vertices: worldVerts, indices: mesh.indices }, physics);
             const edges = uniqueEdges(soft.faces);
+            if (this.isScene) soft.setGravity(1);
             this.bodies.push({
                 splat, soft, toWorld, toLocal: invertAffine(toWorld),
                 world: worldVerts, local: new Float32Array(mesh.vertices.length), posed: new Float32Array(mesh.vertices.length),
@@ -166,6 +196,7 @@ export class DemoAsset {
     counts() {
         let anchored = 0, plain = 0;
         for (const b of this.bodies) anchored += b.splat.prim.count;
+        for (const r of this.rigids) anchored += r.splat.prim.count;
         for (const e of this.plain) plain += e.gsplat?.resource?.numSplats ?? e.gsplat?.asset?.resource?.numSplats ?? 0;
         return { anchored, plain };
     }
@@ -175,6 +206,30 @@ export class DemoAsset {
         const all = [];
         for (const b of this.bodies) all.push(...transformPoints(b.toWorld, b.splat.prim.anchorMesh.vertices, new Float32Array(b.world.length)));
         return bounds(all);
+    }
+
+    /** World bounds of every physics object at rest (soft anchor meshes and rigid hulls). */
+    sceneRestBounds() {
+        const all = [];
+        for (const b of this.bodies) all.push(...transformPoints(b.toWorld, b.splat.prim.anchorMesh.vertices, new Float32Array(b.world.length)));
+        for (const { rigid } of this.rigids) {
+            const m = rigid.object.matrix;
+            all.push(...transformPoints(m, rigid.object.collider.vertices, new Float32Array(rigid.object.collider.vertices.length)));
+        }
+        return bounds(all);
+    }
+
+    /**
+     * The file's first static ground box in world space: centre, half extents, rotation
+     * (x, y, z, w), and the height of its top face; null when the file has none.
+     */
+    groundBox() {
+        const g = this.grounds[0];
+        if (!g) return null;
+        const { translation, rotation, scale } = decomposeAffine(g.matrix);
+        const size = /** @type {number[]} */ (g.size);
+        const half = size.map((v, k) => 0.5 * v * scale[k]);
+        return { center: translation, half, rotation, top: translation[1] + half[1] };
     }
 
     /** Current world bounds of the anchor meshes (through the embedding: the mesh the splats follow). */
@@ -204,6 +259,12 @@ export class DemoAsset {
      * @param {{index: number, time: number}|null} [pose]
      */
     sync(pose = null) {
+        for (const { splat, rigid } of this.rigids) {
+            if (rigid.kind === 'static') continue;
+            const { translation: t, rotation: q } = rigid.transform();
+            splat.entity.setPosition(t[0], t[1], t[2]);
+            splat.entity.setRotation(q[0], q[1], q[2], q[3]);
+        }
         for (const b of this.bodies) {
             b.soft.readAnchorVertices(b.world);
             transformPoints(b.toLocal, b.world, b.local);
@@ -241,6 +302,7 @@ export class DemoAsset {
      * @param {number} dt
      */
     step(dt) {
+        for (const r of this.rigids) r.rigid.prepare(dt);
         for (const b of this.bodies) b.soft.prepare(dt);
         this.world.step(dt);
         for (const b of this.bodies) b.soft.guard();
@@ -262,12 +324,77 @@ export class DemoAsset {
         }
     }
 
+    /**
+     * Lift every moving object of a scene by `dy` (world, up) from where the file puts it, at
+     * rest: dynamic rigid bodies and soft bodies (kinematic and static ones stay).
+     * @param {number} dy
+     */
+    lift(dy) {
+        for (const { rigid } of this.rigids) if (rigid.kind === 'rigid') rigid.reset([0, dy, 0]);
+        for (const b of this.bodies) b.soft.placeAt([0, dy, 0]);
+    }
+
+    /**
+     * Drop: lift what moves and let it fall (gravity on). A scene lifts its dynamic rigid and soft
+     * bodies by half its height; an asset without records its soft bodies by half theirs.
+     * @returns {boolean} whether this is a scene (the camera stays; otherwise it follows the body)
+     */
+    drop() {
+        const rb = this.isScene ? this.sceneRestBounds() : this.restBounds();
+        this.lift(0.5 * rb.size[1]);
+        for (const b of this.bodies) b.soft.setGravity(1);
+        return this.isScene;
+    }
+
+    /**
+     * Place the physics ground and the visible `plane` (an entity, or null): the file's ground box
+     * when it has one (the plane on its top face), else a wide box a little below `rb` (bounds).
+     * @param {import('./physics.js').PhysicsWorld} world @param {any} plane
+     * @param {{center: number[], size: number[], min: number[]}} rb
+     */
+    placeGround(world, plane, rb) {
+        const box = this.groundBox();
+        if (box) {
+            world.setGroundBox(box.center, box.half, box.rotation);
+            plane?.setPosition(box.center[0], box.top, box.center[2]);
+            plane?.setLocalScale(2 * box.half[0], 1, 2 * box.half[2]);
+            return;
+        }
+        const size = Math.max(...rb.size) || 1, y = rb.min[1] - 0.2 * rb.size[1];
+        world.setGround(y, 20 * size, [rb.center[0], rb.center[2]]);
+        plane?.setPosition(rb.center[0], y, rb.center[2]);
+        plane?.setLocalScale(20 * size, 1, 20 * size);
+    }
+
+    /**
+     * The physics objects of a scene now (null for an asset without records): name, kind, the
+     * splat node's world position and rotation, the world bounds of its collider hull (rigid
+     * kinds) or anchor mesh (soft), the velocity of rigid ones; and the ground's top.
+     */
+    describe() {
+        if (!this.isScene) return null;
+        const out = [];
+        for (const { splat, rigid } of this.rigids) {
+            const p = splat.entity.getPosition(), q = splat.entity.getRotation(), b = rigid.bounds();
+            out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: [p.x, p.y, p.z],
+                rotation: [q.x, q.y, q.z, q.w], min: b.min, max: b.max, velocity: rigid.velocity() });
+        }
+        for (const b of this.bodies) {
+            const p = b.splat.entity.getPosition(), r = bounds(b.soft.readAnchorVertices());
+            out.push({ name: b.splat.entity.name, kind: 'soft', node: b.splat.prim.node, position: [p.x, p.y, p.z],
+                rotation: null, min: r.min, max: r.max, velocity: null });
+        }
+        return { objects: out, groundTop: this.groundBox()?.top ?? null };
+    }
+
     /** Back to the rest pose (physics and splats). */
     reset() {
         for (const b of this.bodies) {
             b.soft.reset();
+            if (this.isScene) b.soft.setGravity(1);
             b.splat.reset();
         }
+        for (const r of this.rigids) r.rigid.reset();
     }
 
     /** Remove everything this asset added. */
@@ -276,7 +403,12 @@ export class DemoAsset {
             b.soft.destroy();
             b.splat.destroy();
         }
+        for (const r of this.rigids) {
+            r.rigid.destroy();
+            r.splat.destroy();
+        }
         this.bodies = [];
+        this.rigids = [];
         this.root.destroy();
         if (this.asset) {
             this.app.assets.remove(this.asset);

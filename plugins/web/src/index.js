@@ -11,6 +11,7 @@ export {
     matrixToQuatInto, quatToMatrix, JACOBI_SWEEPS,
 } from './decompose.js';
 export { AnchorAnimation, readAnchorAnimation } from './animation.js';
+export { readPhysics, RIGID_BODIES, IMPLICIT_SHAPES, PHYSICS_KINDS } from './physics.js';
 
 // the shared types (src/types.js), for `import type { AnchoredPrimitive } from '@gsverse/web'`
 /** @typedef {import('./types.js').RestPose} RestPose */
@@ -20,3 +21,7 @@ export { AnchorAnimation, readAnchorAnimation } from './animation.js';
 /** @typedef {import('./types.js').RestQuantities} RestQuantities */
 /** @typedef {import('./types.js').RemapOutput} RemapOutput */
 /** @typedef {import('./types.js').RotationScaleOutput} RotationScaleOutput */
+/** @typedef {import('./types.js').PhysicsObject} PhysicsObject */
+/** @typedef {import('./types.js').PhysicsShape} PhysicsShape */
+/** @typedef {import('./types.js').PhysicsScene} PhysicsScene */
+/** @typedef {import('./types.js').PhysicsMotion} PhysicsMotion */

@@ -91,4 +91,46 @@
  * @property {Float32Array} scales     (3N) linear
  */
 
+/**
+ * The motion of a physics object (KHR_physics_rigid_bodies `motion`, defaults filled in).
+ * @typedef {object} PhysicsMotion
+ * @property {boolean} isKinematic
+ * @property {number|null} mass            null: the engine's choice (from the collider)
+ * @property {number} gravityFactor
+ * @property {number[]} linearVelocity     initial, node space
+ * @property {number[]} angularVelocity    initial
+ */
+
+/**
+ * A splat node that is a physics object.
+ * @typedef {object} PhysicsObject
+ * @property {number} node                 the splat node's index
+ * @property {string} name
+ * @property {'rigid'|'soft'|'kinematic'|'static'} kind  soft: simulate the anchor mesh as a soft body (motion ignored)
+ * @property {PhysicsMotion|null} motion   null for a static body
+ * @property {Float64Array} matrix         the node's global matrix (column-major 4x4)
+ * @property {{node: number, convexHull: boolean, vertices: Float32Array, indices: Uint32Array}} collider
+ *   the collider mesh (node `node`), in the splat node's local space: 3V positions, 3F corners
+ */
+
+/**
+ * A node without splats whose collider is an implicit shape (the ground: a static box).
+ * @typedef {object} PhysicsShape
+ * @property {number} node
+ * @property {string} name
+ * @property {'rigid'|'soft'|'kinematic'|'static'} kind
+ * @property {Float64Array} matrix         the node's global matrix; the shape is centred at its origin
+ * @property {number} shape                index in KHR_implicit_shapes.shapes
+ * @property {'box'|'sphere'} type
+ * @property {number[]} [size]             box: full size along x, y, z
+ * @property {number} [radius]             sphere
+ */
+
+/**
+ * The result of readPhysics.
+ * @typedef {object} PhysicsScene
+ * @property {PhysicsObject[]} objects
+ * @property {PhysicsShape[]} shapes
+ */
+
 export {};

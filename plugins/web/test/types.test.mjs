@@ -33,8 +33,8 @@ function run(cmd, args, cwd) {
 // an error: with `any` in the declarations it is not, and tsc reports the unused directive.
 const CONSUMER = `
 import {
-    AnchorError, computeRest, readAnchoredGlb, remapCpu, remapCpuRotationScale,
-    type AnchoredGlb, type AnchoredPrimitive, type RemapOutput, type RestQuantities, type RotationScaleOutput,
+    AnchorError, computeRest, readAnchoredGlb, readPhysics, remapCpu, remapCpuRotationScale,
+    type PhysicsScene, type PhysicsObject, type AnchoredGlb, type AnchoredPrimitive, type RemapOutput, type RestQuantities, type RotationScaleOutput,
 } from '@gsverse/web';
 import { AnchoredSplat, PLAYCANVAS_VERSION, SUPPORTED_PLAYCANVAS, loadAnchoredAsset } from '@gsverse/web/playcanvas';
 import {
@@ -64,6 +64,17 @@ export function cpu(bytes: Uint8Array, vertices: Float32Array): RemapOutput {
     // @ts-expect-error a primitive has no such member
     prim.nonexistent;
     return count + means.length + rs.scales.length + restVertices.length + (firstPlain ?? 0) > 0 && profile ? out : out;
+}
+
+export function physics(bytes: Uint8Array): number {
+    const scene: PhysicsScene = readPhysics(bytes, { name: 'scene.glb' });
+    const first: PhysicsObject | undefined = scene.objects[0];
+    const kind: 'rigid' | 'soft' | 'kinematic' | 'static' | undefined = first?.kind;
+    const hull: Float32Array | undefined = first?.collider.vertices;
+    const box: number[] | undefined = scene.shapes[0]?.size;
+    // @ts-expect-error a kind is one of four strings
+    const wrong: number | undefined = first?.kind;
+    return (hull?.length ?? 0) + (box?.[1] ?? 0) + (kind ? 1 : 0) + (wrong ?? 0);
 }
 
 export function refusalCode(err: unknown): string | null {
