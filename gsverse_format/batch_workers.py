@@ -24,6 +24,9 @@ from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
 
 DASK_RESOURCE = "asset"
+#: Seconds to reach a Dask scheduler (TCP connection), and beyond that for its handshake.
+DASK_CONNECT_S = 30
+DASK_HANDSHAKE_S = 15
 
 @dataclass(frozen=True)
 class BatchTask:
@@ -249,10 +252,37 @@ def _dask_client(address: str) -> Any:
     except ImportError:
         raise UsageError("--scheduler needs Dask distributed (pip install dask distributed)") \
             from None
-    try:
-        return Client(address, timeout="30s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise UsageError(f"cannot connect to the Dask scheduler: {exc}", address) from None
+    import threading
+
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(address, timeout=f"{DASK_CONNECT_S}s")
+        except Exception as exc:  # noqa: BLE001 - a network peer's bytes are input
+            # distributed trusts what the server sends: a server that is not Dask makes its
+            # handshake fail with AssertionError, MemoryError (an HTTP reply read as a frame
+            # length of 3·10¹⁸ bytes) and others; the type is kept in the message.
+            box["error"] = exc
+        except BaseException as exc:  # pragma: no cover - re-raised below, in this thread
+            box["unexpected"] = exc
+
+    # Client's timeout covers the TCP connection only: a server that accepts and never
+    # answers (not a Dask scheduler) would hold the handshake forever. The thread is a
+    # daemon, so a connection that never ends does not keep the process alive.
+    thread = threading.Thread(target=connect, name="dask-connect", daemon=True)
+    thread.start()
+    thread.join(DASK_CONNECT_S + DASK_HANDSHAKE_S)
+    if thread.is_alive():
+        raise UsageError(f"no Dask scheduler answered within {DASK_CONNECT_S + DASK_HANDSHAKE_S}"
+                         f" s (is it a Dask scheduler's address?)", address)
+    if "unexpected" in box:
+        raise box["unexpected"]
+    if "error" in box:
+        exc = box["error"]
+        raise UsageError(f"cannot connect to the Dask scheduler: {type(exc).__name__}: {exc}"
+                         .replace("\n", " "), address) from None
+    return box["client"]
 
 
 def _dask_resources(client: Any, quiet: bool) -> dict[str, float] | None:

@@ -137,3 +137,42 @@ def test_a_killed_worker_fails_only_its_own_asset(tmp_path):
         if a["status"] == "ok":
             assert read_gltf(a["output"]).splat_count() == len(cloud)
     assert not [p for p in out.rglob(".*")]  # the dead worker's temporary file removed
+
+
+@pytest.mark.parametrize("answer", [b"", b"HTTP/1.1 200 OK\r\n\r\nnot a scheduler\r\n"])
+def test_a_scheduler_address_that_is_not_dask_is_a_usage_error(monkeypatch, answer):
+    """A TCP server that accepts and then says nothing (or something else) is refused
+    within the connection and handshake limits, not waited on forever."""
+    import socket
+    import threading
+
+    from gsverse_format import batch_workers
+
+    monkeypatch.setattr(batch_workers, "DASK_CONNECT_S", 2)
+    monkeypatch.setattr(batch_workers, "DASK_HANDSHAKE_S", 3)
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    held: list[socket.socket] = []
+
+    def serve() -> None:
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                return
+            held.append(conn)
+            if answer:
+                conn.sendall(answer)
+
+    threading.Thread(target=serve, daemon=True).start()
+    address = f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    try:
+        with pytest.raises(UsageError) as info:
+            batch_workers._dask_client(address)
+    finally:
+        server.close()
+        for conn in held:
+            conn.close()
+    assert address in str(info.value)
+    assert "Dask scheduler" in str(info.value)
