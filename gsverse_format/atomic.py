@@ -117,6 +117,32 @@ def sweep_stale(folder: str | os.PathLike[str], *, min_age: float = STALE_AFTER_
     return removed
 
 
+def sweep_dead(folder: str | os.PathLike[str], pid: int) -> list[str]:
+    """Remove the temporaries in ``folder`` of process ``pid`` of this machine, known dead
+    (a batch's worker killed while writing): whatever their age; returns their paths."""
+    if _alive(pid):
+        return []
+    removed: list[str] = []
+    host = _host()
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        m = _NAME.match(entry.name)
+        if m is None or m["host"] != host or int(m["pid"]) != pid:
+            continue
+        try:
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(entry.path)
+            else:
+                os.unlink(entry.path)
+        except OSError:
+            continue
+        removed.append(entry.path)
+    return removed
+
+
 def _sweep_once(folder: str) -> None:
     key = os.path.realpath(folder)
     if key not in _SWEPT:

@@ -10,13 +10,14 @@
 2. :func:`plan` names the outputs: a manifest's ``output`` (relative to ``DIR``), else the
    input's path relative to the inputs' common folder, with the ``--to`` suffix (``a/x.ply``
    and ``b/x.ply`` become ``DIR/a/x.glb`` and ``DIR/b/x.glb``). Two assets with one output,
-   or an output that exists (without ``overwrite`` or ``skip_existing``), is a
-   :class:`UsageError` before anything runs.
+   an output that exists (without ``overwrite`` or ``skip_existing``), a manifest output outside
+   ``DIR`` (absolute, ``..``, or through a symbolic link) and an output that is a file some
+   asset of the batch reads are each a :class:`UsageError` naming the row, before anything runs.
 3. :func:`run_batch` converts each asset with :func:`convert_one` (the single-file pipeline,
-   :func:`gsverse_format.pipeline.convert`, atomic writes included) in a
-   :class:`~concurrent.futures.ProcessPoolExecutor` (``jobs`` processes), or, with
-   ``scheduler``, as one task per asset on a Dask distributed cluster. A failing asset is
-   reported in its :class:`AssetResult` and the rest still convert.
+   :func:`gsverse_format.pipeline.convert`, atomic writes included) in ``jobs`` worker
+   processes, or, with ``scheduler``, as one task per asset on a Dask distributed cluster
+   (:mod:`gsverse_format.batch_workers`). A failing asset is reported in its
+   :class:`AssetResult` and the rest still convert, also when a worker process dies.
 
 Memory stays bounded by one asset per process: a local worker converts one asset at a time;
 on Dask, an asset is one task, so start workers with ``--nthreads 1`` (a worker converts one
@@ -31,19 +32,15 @@ import glob
 import json
 import os
 import signal
-import sys
 import time
-import uuid
-import warnings
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
-from .atomic import WRITE_ERRNOS
+from .batch_workers import DASK_RESOURCE, AssetResult, BatchTask, convert_one, run_dask, run_local
 from .edit import EDIT_FLAGS
-from .errors import GsverseError, UsageError
-from .pipeline import ConvertOptions, convert
-from .progress import Progress, silenced_warnings
+from .errors import UsageError
+from .pipeline import ConvertOptions
+from .progress import Progress
 
 __all__ = ["AssetSpec", "BatchTask", "AssetResult", "BatchReport", "DASK_RESOURCE",
            "MANIFEST_SUFFIXES", "collect", "read_manifest", "plan", "convert_one", "run_batch"]
@@ -51,7 +48,6 @@ __all__ = ["AssetSpec", "BatchTask", "AssetResult", "BatchReport", "DASK_RESOURC
 #: Inputs with these suffixes are manifests, not splat files.
 MANIFEST_SUFFIXES = (".csv", ".json")
 #: The Dask worker resource a task asks one unit of, when every worker declares it.
-DASK_RESOURCE = "asset"
 
 _TRUE = {"1", "true", "yes", "y", "on"}
 _FALSE = {"0", "false", "no", "n", "off"}
@@ -131,35 +127,6 @@ class AssetSpec:
     output: str | None = None
     origin: str = ""
     position: int = -1
-
-
-@dataclass(frozen=True)
-class BatchTask:
-    """What a worker gets: one asset, its output path and options (picklable)."""
-
-    index: int
-    input: str
-    output: str
-    options: ConvertOptions
-    overwrite: bool = False
-    quiet: bool = False
-
-
-@dataclass
-class AssetResult:
-    """One asset's outcome: ``status`` is ``ok``, ``failed``, ``skipped`` (its output existed)
-    or ``interrupted`` (never converted: the batch was stopped); ``error`` is one line (naming
-    the file) unless ok; ``summary`` is the single-file ``--json`` summary when ok (None for
-    an output completed just as the batch was interrupted)."""
-
-    input: str
-    output: str
-    status: str
-    error: str | None = None
-    summary: dict[str, Any] | None = None
-
-    def as_dict(self) -> dict[str, Any]:
-        return dataclasses.asdict(self)
 
 
 @dataclass
@@ -317,6 +284,57 @@ def _common_folder(paths: list[str]) -> str:
         return ""
 
 
+def _inside_output_dir(output_dir: str, name: str, where: str) -> str:
+    """``name`` (a manifest's ``output``) joined to ``output_dir``; :class:`UsageError` when
+    it is absolute or leads out of the folder, by ``..`` or through a symbolic link (the
+    folder's real path is compared with the output's, as the glTF reader does for URIs)."""
+    if os.path.isabs(name) or os.path.splitdrive(name)[0]:
+        raise UsageError(f"output {name!r} is an absolute path; a manifest's outputs are "
+                         f"relative to --output-dir", where)
+    out = os.path.normpath(os.path.join(output_dir, name))
+    root = os.path.realpath(output_dir)
+    real = os.path.realpath(out)
+    if real == root or os.path.commonpath([root, real]) != root:
+        raise UsageError(f"output {name!r} leads outside --output-dir {output_dir}", where)
+    return out
+
+
+def _input_files(spec: AssetSpec) -> list[str]:
+    """Every file an asset reads: its input, meshes, poses and checkpoint."""
+    o = spec.options
+    paths = [spec.input, o.mesh, o.bake_poses, o.pt_path, *(o.meshes or [])]
+    return [p for p in paths if p]
+
+
+def _refuse_outputs_over_inputs(named: list[AssetSpec]) -> None:
+    """:class:`UsageError` naming the row when an asset's output is a file some asset of the
+    batch reads (the same path, a link to it, or the same file under another name): the
+    batch would convert a file it had just overwritten."""
+    reads: dict[str, AssetSpec] = {}
+    stats: dict[tuple[int, int], AssetSpec] = {}
+    for s in named:
+        for path in _input_files(s):
+            reads.setdefault(os.path.normcase(os.path.realpath(path)), s)
+            try:
+                st = os.stat(path)
+            except OSError:
+                continue
+            stats.setdefault((st.st_dev, st.st_ino), s)
+    for s in named:
+        assert s.output is not None
+        owner = reads.get(os.path.normcase(os.path.realpath(s.output)))
+        if owner is None:
+            try:
+                st = os.stat(s.output)
+                owner = stats.get((st.st_dev, st.st_ino))
+            except OSError:
+                owner = None
+        if owner is not None:
+            whose = "its own input" if owner is s else f"an input of {owner.origin or owner.input}"
+            raise UsageError(f"output {s.output} is {whose}; write the outputs elsewhere",
+                             s.origin or s.input)
+
+
 def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite: bool = False,
          skip_existing: bool = False) -> tuple[list[AssetSpec], list[AssetResult]]:
     """Name every output under ``output_dir``; returns (assets to convert, assets skipped
@@ -327,7 +345,7 @@ def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite:
     named: list[AssetSpec] = []
     for s in specs:
         if s.output is not None:
-            out = os.path.join(output_dir, s.output)
+            out = _inside_output_dir(output_dir, s.output, s.origin or s.input)
         else:
             src = os.path.abspath(s.input.rstrip("/\\") or s.input)
             rel = os.path.relpath(src, common) if common else os.path.basename(src)
@@ -342,6 +360,7 @@ def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite:
             raise UsageError(f"{seen[key].input} and {s.input} would both be written to "
                              f"{s.output}; name the outputs in a manifest", s.origin or s.input)
         seen[key] = s
+    _refuse_outputs_over_inputs(named)
     todo, skipped = [], []
     existing = [s for s in named if s.output is not None and os.path.exists(s.output)]
     if existing and not (overwrite or skip_existing):
@@ -355,169 +374,6 @@ def plan(specs: list[AssetSpec], output_dir: str, to: str = "glb", *, overwrite:
         else:
             todo.append(s)
     return todo, skipped
-
-
-# --- one asset ----------------------------------------------------------------------------
-
-def _error_line(exc: BaseException, input_path: str) -> str:
-    if isinstance(exc, GsverseError):
-        text = str(exc)
-    elif isinstance(exc, OSError) and (exc.filename is not None or exc.errno in WRITE_ERRNOS):
-        named = f"{os.fsdecode(exc.filename)}: " if exc.filename is not None else ""
-        text = f"{named}{exc.strerror or exc}"  # the environment's doing, not a bug
-    elif isinstance(exc, MemoryError):
-        text = "out of memory"
-    else:
-        text = (f"internal error: {type(exc).__name__}: {exc} (please report it)"
-                .replace("\n", " "))
-    return text if input_path in text else f"{input_path}: {text}"
-
-
-def convert_one(task: BatchTask) -> AssetResult:
-    """Convert one asset (in whichever process runs it); never raises for a bad asset."""
-    with silenced_warnings(task.quiet):  # also in child processes (the USD reader)
-        try:
-            if not task.overwrite and os.path.exists(task.output):
-                raise UsageError("output exists; use -w/--overwrite to replace it", task.output)
-            folder = os.path.dirname(os.path.abspath(task.output))
-            os.makedirs(folder, exist_ok=True)
-            summary = convert(task.input, task.output, task.options, Progress(enabled=False))
-            return AssetResult(task.input, task.output, "ok", summary=summary.as_dict())
-        except Exception as exc:  # a failing asset is reported; the batch goes on
-            return AssetResult(task.input, task.output, "failed", _error_line(exc, task.input))
-        finally:
-            if _STOPPING:  # pragma: no cover - a local worker told to stop
-                os._exit(143)
-
-
-# --- local processes ----------------------------------------------------------------------
-
-_STOPPING = False
-
-
-def _raise_exit(signum: int, frame: Any) -> None:  # pragma: no cover - runs in a worker
-    """SIGTERM in a local worker: unwind the conversion (its temporary file is removed), then
-    :func:`convert_one` ends the process (the pool would otherwise start the next asset)."""
-    global _STOPPING
-    _STOPPING = True
-    raise SystemExit(128 + signum)
-
-
-def _init_worker(numba_threads: int, quiet: bool) -> None:  # pragma: no cover - in a worker
-    """A local worker: Ctrl-C and SIGHUP (sent to the whole terminal's process group) are the
-    parent's to handle, which stops the workers with SIGTERM; SIGTERM unwinds (an atomic write
-    in progress removes its temporary file); numba threads shared out among the workers."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    if hasattr(signal, "SIGHUP"):
-        signal.signal(signal.SIGHUP, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _raise_exit)
-    if "numba" not in sys.modules:
-        os.environ.setdefault("NUMBA_NUM_THREADS", str(numba_threads))
-    if quiet:
-        warnings.simplefilter("ignore")
-        os.environ["PYTHONWARNINGS"] = "ignore"
-
-
-def _stop_workers(executor: ProcessPoolExecutor) -> None:
-    for process in list((getattr(executor, "_processes", None) or {}).values()):
-        try:
-            process.terminate()
-        except (OSError, ValueError):
-            pass
-
-
-def _run_local(tasks: list[BatchTask], jobs: int, tick: Callable[[AssetResult], None]) -> None:
-    if jobs <= 1 or len(tasks) == 1:
-        for task in tasks:
-            tick(convert_one(task))
-        return
-    import multiprocessing
-
-    threads = max(1, (os.cpu_count() or 1) // jobs)
-    quiet = any(t.quiet for t in tasks)
-    executor = ProcessPoolExecutor(max_workers=jobs,
-                                   mp_context=multiprocessing.get_context("spawn"),
-                                   initializer=_init_worker, initargs=(threads, quiet))
-    futures: dict[Future, BatchTask] = {}
-    try:
-        futures = {executor.submit(convert_one, t): t for t in tasks}
-        for fut in as_completed(futures):
-            task = futures[fut]
-            try:
-                tick(fut.result())
-            except Exception as exc:  # the worker process died (killed, out of memory)
-                tick(AssetResult(task.input, task.output, "failed",
-                                 f"{task.input}: worker process failed: "
-                                 f"{type(exc).__name__}: {exc}".replace("\n", " ")))
-    except BaseException:
-        for fut in futures:
-            fut.cancel()
-        _stop_workers(executor)
-        executor.shutdown(wait=True, cancel_futures=True)
-        raise
-    executor.shutdown(wait=True)
-
-
-# --- Dask ---------------------------------------------------------------------------------
-
-def _dask_client(address: str) -> Any:
-    try:
-        from distributed import Client
-    except ImportError:
-        raise UsageError("--scheduler needs Dask distributed (pip install dask distributed)") \
-            from None
-    try:
-        return Client(address, timeout="30s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise UsageError(f"cannot connect to the Dask scheduler: {exc}", address) from None
-
-
-def _dask_resources(client: Any, quiet: bool) -> dict[str, float] | None:
-    """``{asset: 1}`` when every worker declares that resource; else None, with a warning
-    when a worker would run several assets at once (memory is then not bounded by one)."""
-    try:
-        info = client.scheduler_info(n_workers=-1)
-    except TypeError:  # an older distributed
-        info = client.scheduler_info()
-    workers = list(info.get("workers", {}).values())
-    if workers and all(DASK_RESOURCE in (w.get("resources") or {}) for w in workers):
-        return {DASK_RESOURCE: 1}
-    busy = [w for w in workers if (w.get("nthreads") or 1) > 1]
-    if busy and not quiet:
-        warnings.warn(f"{len(busy)} Dask worker(s) have more than one thread and may convert "
-                      f"several assets at once; start workers with --nthreads 1 or "
-                      f"--resources {DASK_RESOURCE}=1 to convert one asset at a time",
-                      RuntimeWarning, stacklevel=2)
-    return None
-
-
-def _run_dask(tasks: list[BatchTask], address: str, quiet: bool,
-              tick: Callable[[AssetResult], None]) -> None:
-    from distributed import as_completed as dask_completed
-
-    client = _dask_client(address)
-    try:
-        resources = _dask_resources(client, quiet)
-        token = uuid.uuid4().hex[:12]
-        futures = {}
-        for t in tasks:
-            fut = client.submit(convert_one, t, key=f"gsverse-convert-{token}-{t.index}",
-                                pure=False, retries=0, resources=resources)
-            futures[fut.key] = (fut, t)
-        try:
-            for fut in dask_completed([f for f, _ in futures.values()]):
-                task = futures[fut.key][1]
-                try:
-                    tick(fut.result())
-                except Exception as exc:  # KilledWorker (out of memory), lost connection
-                    tick(AssetResult(task.input, task.output, "failed",
-                                     f"{task.input}: Dask task failed: {type(exc).__name__}: "
-                                     f"{exc}".replace("\n", " ")))
-        except BaseException:
-            client.cancel([f for f, _ in futures.values()])
-            raise
-    finally:
-        client.close()
 
 
 # --- the batch ----------------------------------------------------------------------------
@@ -559,9 +415,9 @@ def run_batch(specs: list[AssetSpec], output_dir: str, *, jobs: int | None = Non
     progress.update(0, len(tasks))
     try:
         if scheduler:
-            _run_dask(tasks, scheduler, quiet, tick)
+            run_dask(tasks, scheduler, quiet, tick)
         else:
-            _run_local(tasks, jobs, tick)
+            run_local(tasks, jobs, tick)
     except KeyboardInterrupt as exc:  # Ctrl-C; SIGTERM and SIGHUP under the command line
         report.interrupted = True
         report.interrupt_status = 128 + getattr(exc, "signum", signal.SIGINT)

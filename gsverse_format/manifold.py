@@ -11,7 +11,9 @@ reports and repairs, it does not require.
     manifold3d's ``Mesh.merge`` also merges), builds a ``Manifold`` without error. The edge
     counts (:func:`gsverse_format.meshops.mesh_stats` of the welded mesh) say why not.
     Without manifold3d installed the edge counts alone decide (and orientation and pinched
-    vertices are not checked); the report says which.
+    vertices are not checked); the report says which. manifold3d is asked only when every
+    welded edge has two faces (a mesh far from a manifold can hold its constructor for
+    minutes, beyond the reach of signals).
 :func:`make_watertight`
     a closed 2-manifold near the mesh (``--watertight``): (1) already one: the mesh unchanged;
     (2) duplicate vertices merged (weld, then manifold3d with ``merge``); (3) otherwise
@@ -49,6 +51,11 @@ __all__ = [
 
 #: The collider kinds :func:`collider` builds.
 COLLIDER_KINDS = ("hull",)
+#: A convex hull whose volume is at most this times the cube of its points' bounding-box
+#: diagonal is flat (coplanar points, up to float32 rounding): no collider. A box of extents
+#: 1 × 1 × t has volume about t/2.8 of that cube, so 1e-6 refuses only point sets flat to
+#: within about three millionths of their size.
+HULL_MIN_VOLUME = 1e-6
 
 
 @dataclass(frozen=True)
@@ -96,11 +103,29 @@ def _from_manifold(manifold: Any) -> TriangleMesh:
                         np.array(out.tri_verts, np.int64).reshape(-1, 3))
 
 
-def _is_manifold(m3d: Any, mesh: TriangleMesh) -> bool:
-    if mesh.face_count == 0:
-        return False
+def _edges_closed(mesh: TriangleMesh) -> bool:
+    """Whether every edge of ``mesh``, vertices at equal positions merged, has exactly two
+    faces: a necessary condition for a closed 2-manifold, decided in numpy.
+
+    manifold3d is asked only when this holds. On meshes far from a manifold (100k copies of
+    one triangle, the fan of a polygon of 10⁴ corners) its constructor runs for minutes in
+    native code that holds the interpreter, so that not even SIGTERM's handler can run; the
+    edge counts already say such meshes are not closed."""
+    return mesh.face_count > 0 and mesh_stats(weld(mesh)).closed
+
+
+def _manifold_if_closed(m3d: Any, mesh: TriangleMesh) -> Any | None:
+    """manifold3d's ``Manifold`` of ``mesh`` when it is a closed 2-manifold, else None."""
+    if not _edges_closed(mesh):
+        return None
     manifold = _to_manifold(m3d, mesh)
-    return bool(manifold.status() == m3d.Error.NoError and not manifold.is_empty())
+    if manifold.status() == m3d.Error.NoError and not manifold.is_empty():
+        return manifold
+    return None
+
+
+def _is_manifold(m3d: Any, mesh: TriangleMesh) -> bool:
+    return _manifold_if_closed(m3d, mesh) is not None
 
 
 def manifold_report(mesh: TriangleMesh) -> ManifoldReport:
@@ -154,14 +179,13 @@ def make_watertight(mesh: TriangleMesh) -> tuple[TriangleMesh, str]:
     if _is_manifold(m3d, mesh):
         return mesh, "already a closed 2-manifold"
     welded = weld(mesh)
-    manifold = _to_manifold(m3d, welded)
-    if manifold.status() == m3d.Error.NoError and not manifold.is_empty():
+    manifold = _manifold_if_closed(m3d, welded)
+    if manifold is not None:
         return _from_manifold(manifold), "merged duplicate vertices"
     before = manifold_report(mesh)
     closed = _pymeshlab_close(welded)
-    manifold = _to_manifold(m3d, closed) if closed.face_count else None
-    if manifold is not None and manifold.status() == m3d.Error.NoError \
-            and not manifold.is_empty():
+    manifold = _manifold_if_closed(m3d, closed)
+    if manifold is not None:
         repaired = _from_manifold(manifold)
         added = repaired.face_count - mesh.face_count
         return repaired, (f"repaired {before.why_not()}: {mesh.face_count} -> "
@@ -177,8 +201,14 @@ def collider(mesh: TriangleMesh, kind: str = "hull") -> TriangleMesh:
     if kind not in COLLIDER_KINDS:
         raise UsageError(f"--collider must be one of {', '.join(COLLIDER_KINDS)}, not {kind!r}")
     m3d = _require_manifold3d(f"--collider {kind}")
-    hull = m3d.Manifold.hull_points(np.array(mesh.vertices, np.float32, order="C"))
-    if hull.is_empty():
+    points = np.array(mesh.vertices, np.float32, order="C")
+    hull = m3d.Manifold.hull_points(points)
+    # manifold3d returns a flat "hull" of thousands of triangles for coplanar points: a hull
+    # whose volume is at most HULL_MIN_VOLUME times the cube of the points' bounding-box
+    # diagonal spans no volume.
+    diagonal = float(np.linalg.norm(np.ptp(points.astype(np.float64), axis=0))) \
+        if len(points) else 0.0
+    if hull.is_empty() or hull.volume() <= HULL_MIN_VOLUME * diagonal ** 3:
         raise FormatError("--collider hull: the anchor mesh's vertices span no volume (they "
                           "are coplanar or collinear)")
     return _from_manifold(hull)
