@@ -15,7 +15,9 @@ validated, every accessor checked); a ``.gltf`` with one 512 MiB base64
 primitives sharing the accessors of one 3,000-splat primitive (``--quick``: 600 × 3,000);
 JSON with a ``NaN`` literal; a ``.usda`` declaring 1.1 million prims and one nesting brackets
 5,000 deep; an OBJ anchor mesh whose ``mtllib`` points outside its folder (converted: the
-material file is never opened).
+material file is never opened); ``.spz`` files of compressed zeros declaring millions of
+splats (zstd v4, gzip v2); a ``.sog`` whose WebP header declares 8192² pixels; anchor meshes
+far from a manifold (one OBJ polygon of 20,000 corners, 100,000 copies of one triangle).
 """
 from __future__ import annotations
 
@@ -138,6 +140,81 @@ def obj_outside_material(folder: str, quick: bool) -> str:
     return path
 
 
+def spz_zstd_zeros(folder: str, quick: bool) -> str:
+    """spz v4: ten million splats of zstd-compressed zeros (beyond the inflation ratio)."""
+    import struct
+
+    import zstandard
+
+    n = 10_000_000
+    sizes = [9 * n, n, 3 * n, 3 * n, 4 * n]
+    packed = [zstandard.ZstdCompressor(level=19).compress(bytes(k)) for k in sizes]
+    head = struct.pack("<4sIIBBBBI", b"NGSP", 4, n, 0, 12, 0, len(sizes), 32).ljust(32, b"\0")
+    table = b"".join(struct.pack("<QQ", len(p), k) for p, k in zip(packed, sizes))
+    path = os.path.join(folder, "zeros.spz")
+    with open(path, "wb") as handle:
+        handle.write(head + table + b"".join(packed))
+    return path
+
+
+def spz_gzip_zeros(folder: str, quick: bool) -> str:
+    """spz v2: two million SH-3 splats of gzip-compressed zeros (beyond the ratio)."""
+    import gzip
+    import struct
+
+    n = 2_000_000
+    path = os.path.join(folder, "zeros_gzip.spz")
+    with gzip.open(path, "wb", 9) as handle:
+        handle.write(struct.pack("<IIIBBBB", 0x5053474E, 2, n, 3, 12, 0, 0))
+        handle.write(bytes(65 * n))
+    return path
+
+
+def sog_pixels(folder: str, quick: bool) -> str:
+    """A SOG archive whose 8×8 WebP says 8192² pixels in its header."""
+    import io
+    import zipfile
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGBA", (8, 8)).save(buf, "WEBP", lossless=True)
+    data = buf.getvalue()
+    at = data.index(b"VP8L") + 9
+    bits = int.from_bytes(data[at:at + 4], "little") & ~((1 << 28) - 1)
+    data = data[:at] + (bits | 8191 | (8191 << 14)).to_bytes(4, "little") + data[at + 4:]
+    meta = {"version": 2, "count": 3, "means": {"mins": [0, 0, 0], "maxs": [1, 1, 1],
+                                                "files": ["big.webp", "big.webp"]}}
+    path = os.path.join(folder, "pixels.sog")
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("meta.json", json.dumps(meta))
+        z.writestr("big.webp", data)
+    return path
+
+
+def obj_long_polygon(folder: str, quick: bool) -> str:
+    """One OBJ face of 20,000 corners (quick: 5,000)."""
+    corners = 5_000 if quick else 20_000
+    a = np.linspace(0, 2 * np.pi, corners, endpoint=False)
+    path = os.path.join(folder, "polygon.obj")
+    with open(path, "w", encoding="ascii") as handle:
+        for t in a:
+            handle.write(f"v {np.cos(t):.6f} {0.3 * np.sin(3 * t):.6f} {np.sin(t):.6f}\n")
+        handle.write("f " + " ".join(str(i + 1) for i in range(corners)) + "\n")
+    return path
+
+
+def duplicate_triangles(folder: str, quick: bool) -> str:
+    """A GLB mesh of 100,000 copies of one triangle (quick: 20,000)."""
+    copies = 20_000 if quick else 100_000
+    vertices = np.tile(np.frombuffer(TRIANGLE, np.float32), copies).tobytes()
+    doc = _triangle_doc([{"mesh": 0}], [{"bufferView": 0, "componentType": 5126,
+                                          "count": 3 * copies, "type": "VEC3",
+                                          "min": [0, 0, 0], "max": [1, 1, 0]}])
+    doc["bufferViews"][0]["byteLength"] = doc["buffers"][0]["byteLength"] = len(vertices)
+    return _glb(os.path.join(folder, "duplicates.glb"), doc, vertices)
+
+
 #: (name, builder, the limit it meets, which tools run on it).
 CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
     ("node graph, 4⁶⁰ instances", dag_bomb,
@@ -157,6 +234,14 @@ CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
      f"MAX_USD_TEXT_NESTING = {limits.MAX_USD_TEXT_NESTING}", ("convert", "validate")),
     ("OBJ mtllib outside its folder", obj_outside_material, "no file outside is read",
      ("mesh",)),
+    (".spz v4, zstd zeros", spz_zstd_zeros, "MAX_INFLATION_RATIO = 100", ("convert",)),
+    (".spz v2, gzip zeros", spz_gzip_zeros, "MAX_INFLATION_RATIO = 100", ("convert",)),
+    (".sog, WebP header of 8192² pixels", sog_pixels, "MAX_INFLATION_RATIO = 100",
+     ("convert",)),
+    ("OBJ, one polygon of many corners", obj_long_polygon, "manifold3d after the edge counts",
+     ("mesh",)),
+    ("GLB mesh, one triangle many times", duplicate_triangles,
+     "manifold3d after the edge counts", ("mesh",)),
 ]
 
 

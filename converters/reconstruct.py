@@ -205,6 +205,25 @@ def _poisson(points: np.ndarray, normals: np.ndarray, weights: np.ndarray, depth
     return v, f, q
 
 
+def _distinct_positions(splats: SplatCloud, use: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """``use`` less the splats at the position of an earlier one (exactly equal means).
+
+    Copies add nothing to a surface, and many copies of one point make the k-d tree of
+    :func:`orient_normals` quadratic (a million splats at one point ran for hours in scipy's
+    native code, beyond the reach of SIGTERM); too few distinct points is refused."""
+    if use.size == 0:
+        return use, None
+    _, first = np.unique(splats.means[use], axis=0, return_index=True)
+    if len(first) < _MIN_POINTS:
+        raise FormatError(f"only {len(first)} distinct splat positions: too few to reconstruct "
+                          "a mesh; pass the object's mesh with --mesh")
+    if len(first) == use.size:
+        return use, None
+    return (use[np.sort(first)],
+            f"{use.size - len(first)} splats at the position of another left out of the "
+            "reconstruction")
+
+
 def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
                       depth: int | None = None, *, min_opacity: float = 0.05,
                       trim_percentile: float = 20.0, trim_gap: float = 1.0,
@@ -234,6 +253,9 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     stage(f"reconstructing the anchor mesh: normals of {len(splats)} splats")
     t0 = time.perf_counter()
     use, note = _select_points(splats, min_opacity)
+    if note:
+        report["notes"].append(note)
+    use, note = _distinct_positions(splats, use)
     if note:
         report["notes"].append(note)
     report["points"] = int(use.size)

@@ -11,6 +11,18 @@ Limits (each guards against a file that claims more than it holds, or a decompre
   ``.spz``, whose splats take 64 bytes each at degree 3).
 * :data:`MAX_IMAGE_PIXELS` — the most pixels of one SOG WebP image: 2²⁸ (16384²), the WebP
   format's own limit on each side.
+* :func:`inflation_limit` — below both caps, what a compressed stream may inflate to in
+  proportion to its own size: :data:`MAX_INFLATION_RATIO` times its compressed bytes plus
+  :data:`INFLATION_SLACK`. Real splat data compresses 1–4× (gzip of ``.spz``, zstd streams,
+  lossless WebP of quantized attributes, deflated zip members); only a bomb (a few kilobytes
+  of zeros declaring millions of splats, a 38-byte WebP declaring 8192² pixels) inflates a
+  hundredfold beyond the slack. Checked on declared sizes before anything is inflated, and
+  while inflating where nothing is declared (gzip).
+* SOG archive members are read only when stored or deflated (zipfile's deflate reader honours
+  a bound on its output; its bzip2 and LZMA readers inflate whole chunks at once), and folder
+  members only when their real path (symbolic links resolved) lies in the folder.
+* :data:`MAX_JSON_NESTING` — how deep ``meta.json`` may nest; integers in it are limited by
+  Python's own 4300-digit rule, reported as bad input.
 """
 from __future__ import annotations
 
@@ -26,11 +38,26 @@ import numpy as np
 
 from ...errors import FormatError, UsageError
 
-__all__ = ["MAX_INFLATED_BYTES", "MAX_IMAGE_PIXELS", "read_bytes", "gunzip", "Bundle",
-           "open_bundle", "decode_webp", "Fields"]
+__all__ = ["MAX_INFLATED_BYTES", "MAX_IMAGE_PIXELS", "MAX_INFLATION_RATIO", "INFLATION_SLACK",
+           "MAX_JSON_NESTING", "inflation_limit", "read_bytes", "gunzip", "Bundle",
+           "open_bundle", "decode_webp", "Fields", "parse_json"]
 
 MAX_INFLATED_BYTES = 4 << 30
 MAX_IMAGE_PIXELS = 1 << 28
+MAX_INFLATION_RATIO = 100
+INFLATION_SLACK = 64 << 20
+MAX_JSON_NESTING = 64
+_ZIP_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "deflated"}
+
+
+def inflation_limit(compressed_bytes: int) -> int:
+    """The most bytes ``compressed_bytes`` of a stream may inflate to (see the module)."""
+    return min(MAX_INFLATED_BYTES, INFLATION_SLACK + MAX_INFLATION_RATIO * compressed_bytes)
+
+
+def _limit_text(compressed_bytes: int) -> str:
+    return (f"{inflation_limit(compressed_bytes)} bytes ({MAX_INFLATION_RATIO}x its "
+            f"{compressed_bytes} compressed bytes plus {INFLATION_SLACK >> 20} MiB)")
 
 
 def read_bytes(path: str) -> bytes:
@@ -47,13 +74,16 @@ def read_bytes(path: str) -> bytes:
         raise FormatError(f"cannot read the file ({exc.strerror or exc})", path) from None
 
 
-def gunzip(data: bytes, path: str, limit: int = MAX_INFLATED_BYTES) -> bytes:
-    """The content of a gzip stream, at most ``limit`` bytes."""
+def gunzip(data: bytes, path: str, limit: int | None = None) -> bytes:
+    """The content of a gzip stream, at most ``limit`` bytes (default
+    :func:`inflation_limit` of the stream's size)."""
+    limit = inflation_limit(len(data)) if limit is None else limit
     inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
     try:
         out = inflater.decompress(data, limit)
         if inflater.unconsumed_tail:
-            raise FormatError(f"the gzip stream inflates to more than {limit} bytes", path)
+            raise FormatError(f"the gzip stream inflates to more than {limit} bytes "
+                              f"(at most {_limit_text(len(data))})", path)
         out += inflater.flush()
     except zlib.error as exc:
         raise FormatError(f"broken gzip stream ({exc})", path) from None
@@ -83,9 +113,13 @@ class Bundle:
                 info = self.zip.getinfo(name)
             except KeyError:
                 raise FormatError(f"the archive has no member {name!r}", self.path) from None
-            if info.file_size > MAX_INFLATED_BYTES:
-                raise FormatError(f"member {name!r} inflates to {info.file_size} bytes, more "
-                                  f"than {MAX_INFLATED_BYTES}", self.path)
+            if info.compress_type not in _ZIP_METHODS:
+                raise FormatError(f"member {name!r} is compressed with zip method "
+                                  f"{info.compress_type}; SOG members are stored or deflated",
+                                  self.path)
+            if info.file_size > inflation_limit(info.compress_size):
+                raise FormatError(f"member {name!r} declares {info.file_size} bytes, more "
+                                  f"than {_limit_text(info.compress_size)}", self.path)
             try:
                 return self.zip.read(info)
             except (zipfile.BadZipFile, zlib.error, NotImplementedError, OSError, EOFError,
@@ -93,6 +127,10 @@ class Bundle:
                 raise FormatError(f"cannot read member {name!r} ({exc})", self.path) from None
         assert self.folder is not None
         member = os.path.join(self.folder, name)
+        root = os.path.realpath(self.folder)
+        if os.path.commonpath([root, os.path.realpath(member)]) != root:
+            raise FormatError(f"meta.json names {name!r}, a link to a file outside its folder",
+                              self.path)
         if not os.path.isfile(member):
             raise FormatError(f"meta.json names {name!r}, which is not beside it", self.path)
         data = read_bytes(member)
@@ -121,14 +159,41 @@ def open_bundle(path: str) -> tuple[Bundle, dict[str, Any]]:
         bundle = Bundle(path, None, folder, {os.path.basename(path): len(data)})
         meta_bytes = data
     try:
-        meta = json.loads(meta_bytes.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        meta = parse_json(meta_bytes, "meta.json", path)
+    except FormatError:
         bundle.close()
-        raise FormatError(f"meta.json is not valid JSON ({exc})", path) from None
+        raise
     if not isinstance(meta, dict):
         bundle.close()
         raise FormatError("meta.json is not a JSON object", path)
     return bundle, meta
+
+
+def _nesting(data: bytes) -> int:
+    """The deepest nesting of ``[``/``{`` in JSON bytes (brackets inside strings counted too:
+    an upper bound, enough to refuse before the recursive parser runs)."""
+    codes = np.frombuffer(data, np.uint8)
+    steps = (np.isin(codes, (0x5B, 0x7B)).astype(np.int64)
+             - np.isin(codes, (0x5D, 0x7D)).astype(np.int64))
+    return int(np.cumsum(steps).max()) if len(steps) else 0
+
+
+def parse_json(data: bytes, what: str, path: str) -> Any:
+    """JSON ``data`` (UTF-8) of the file ``what`` in ``path``; :class:`FormatError` for text
+    that is not JSON, nests deeper than :data:`MAX_JSON_NESTING` or holds an integer of more
+    than 4300 digits (Python's limit)."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise FormatError(f"{what} is not UTF-8 text ({exc})", path) from None
+    if _nesting(data) > MAX_JSON_NESTING:
+        raise FormatError(f"{what} nests deeper than {MAX_JSON_NESTING} levels", path)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FormatError(f"{what} is not valid JSON ({exc})", path) from None
+    except ValueError as exc:  # an integer beyond sys.get_int_max_str_digits()
+        raise FormatError(f"{what}: {exc}", path) from None
 
 
 def decode_webp(data: bytes, name: str, path: str) -> np.ndarray:
@@ -143,6 +208,9 @@ def decode_webp(data: bytes, name: str, path: str) -> np.ndarray:
             if image.width * image.height > MAX_IMAGE_PIXELS:
                 raise FormatError(f"image {name!r} has {image.width}x{image.height} pixels, "
                                   f"more than {MAX_IMAGE_PIXELS}", path)
+            if 4 * image.width * image.height > inflation_limit(len(data)):
+                raise FormatError(f"image {name!r} declares {image.width}x{image.height} "
+                                  f"pixels, more than {_limit_text(len(data))} hold", path)
             rgba = np.asarray(image.convert("RGBA"), dtype=np.uint8)
     except (UnidentifiedImageError, OSError, ValueError, Image.DecompressionBombError) as exc:
         raise FormatError(f"cannot decode image {name!r} ({exc})", path) from None

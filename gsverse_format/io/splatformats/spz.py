@@ -51,7 +51,8 @@ import numpy as np
 from ...errors import FormatError
 from ...transform import rotate_splats
 from .common import Decoded, splat_cloud
-from .container import Fields, gunzip, read_bytes
+from .container import (INFLATION_SLACK, MAX_INFLATION_RATIO, Fields, gunzip, inflation_limit,
+                        read_bytes)
 
 __all__ = ["MAGIC", "COLOR_SCALE", "COORDINATE_SYSTEMS", "read_spz", "storage_to_rub",
            "unpack_smallest_three_spz"]
@@ -61,6 +62,9 @@ MAGIC = 0x5053474E
 COLOR_SCALE = 0.15
 _SQRT1_2 = 0.7071067811865476
 HEADER_BYTES = 16
+#: Extension records (other than the coordinate system) skipped at most; real files hold a
+#: handful, and each costs a Python loop turn.
+MAX_EXTENSION_RECORDS = 1024
 V4_HEADER_BYTES = 32
 
 
@@ -131,6 +135,11 @@ def _v4_streams(raw: bytes, path: str) -> tuple[dict[str, int], dict[str, bytes]
         raise FormatError("spz version 4 needs the zstandard package: pip install zstandard",
                           path) from None
     offset = toc + 16 * streams
+    declared = int(table[:, 1].sum()) if streams else 0
+    if declared > inflation_limit(len(raw)):
+        raise FormatError(f"{fields['n']} splats declare {declared} bytes of streams, more than "
+                          f"{inflation_limit(len(raw))} ({MAX_INFLATION_RATIO}x the file's "
+                          f"{len(raw)} bytes plus {INFLATION_SLACK >> 20} MiB)", path)
     out: dict[str, bytes] = {}
     for name, (packed, size) in zip(names, table.tolist()):
         if size != sizes[name] or packed > len(raw) - offset:
@@ -172,6 +181,9 @@ def _extensions(data: bytes, path: str) -> tuple[str | None, int]:
     (u32), payload."""
     storage, skipped, offset = None, 0, 0
     while len(data) - offset >= 8:
+        if skipped >= MAX_EXTENSION_RECORDS:
+            raise FormatError(f"more than {MAX_EXTENSION_RECORDS} spz extension records",
+                              path)
         kind, length = np.frombuffer(data, "<u4", 2, offset).tolist()
         offset += 8
         if length > len(data) - offset:
