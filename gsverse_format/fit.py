@@ -100,6 +100,12 @@ MIN_AROUND_NEAR_SHARE = 0.5
 #: Below this share of near splats, a quarter/half-turn rotation that makes the boxes fit
 #: (see ``_ROTATION_IOU``) is reported as a frame difference.
 MAX_NEAR_SHARE_ROTATED = 0.75
+#: Offsets and turns are measured where the meshes are bound: in the output's frame (glTF,
+#: +Y up, after the frame change). gsverse-convert's edits act in the input's frame unless
+#: ``--edit-frame output`` is given, so the hints say which to use.
+OUTPUT_FRAME_NOTE = ("these axes are the output's glTF frame: to apply them with "
+                     "--mesh-translate or --mesh-rotate, add --edit-frame output")
+
 #: A quarter/half-turn rotation is suggested when the rotated splat box overlaps the mesh's
 #: box by at least this intersection-over-union, and at least twice as much as unrotated.
 _ROTATION_IOU = 0.5
@@ -189,7 +195,7 @@ def _suggest_rotation(lo_s: np.ndarray, hi_s: np.ndarray, lo_m: np.ndarray, hi_m
     if best_name is not None and best >= _ROTATION_IOU and best >= 2 * base_iou:
         return (f"the splats fit the mesh's box when turned {best_name} (a frame difference "
                 "between the two files: convert the mesh into the splats' frame, or check "
-                "--no-frame-change and --from)")
+                f"--no-frame-change and --from; {OUTPUT_FRAME_NOTE})")
     return None
 
 
@@ -238,7 +244,7 @@ def assess_fit(means: np.ndarray, vertices: np.ndarray, distance: np.ndarray) ->
             hint = ("the splats' box centre is offset by "
                     f"({offset[0]:.3g}, {offset[1]:.3g}, {offset[2]:.3g}) from the mesh's: "
                     "check that the mesh belongs to these splats and shares their origin, "
-                    "frame (--no-frame-change, --from) and units")
+                    f"frame (--no-frame-change, --from) and units; {OUTPUT_FRAME_NOTE}")
         return FitReport(**report, problem=(
             f"{near_text} (median distance {median:.3g}, {median / diag_m:.3g} mesh "
             "diagonals)"), hint=hint)

@@ -188,3 +188,35 @@ def test_meshes_reconstructed_from_real_captures_fit(shared_data, tmp_path, name
                       strict=True)
     assert entry["ok"] and entry["around_near_share"] > 0.95
     assert entry["splat_diagonal"] / entry["mesh_diagonal"] > MIN_SPAN_RATIO
+
+
+def test_the_offset_hint_applied_in_the_output_frame_makes_the_mesh_fit(tmp_path):
+    """The hint's offset is in the output's glTF frame; gsverse-convert applies it there with
+    --mesh-translate and --edit-frame output, and the warning is gone."""
+    import json
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import trimesh
+
+    capsule = Path(__file__).resolve().parents[1] / "examples" / "capsule"
+    mesh = trimesh.load(capsule / "mesh.obj", process=False)
+    mesh.apply_translation([4.0, -2.0, 1.0])  # in the PLY's own frame
+    moved = tmp_path / "moved.obj"
+    mesh.export(moved)
+
+    def convert(*extra: str) -> dict:
+        proc = subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert",
+                               str(capsule / "splats.ply"), str(tmp_path / "out.glb"), "-w",
+                               "--mesh", str(moved), "--json", *extra],
+                              capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout)
+
+    hint = convert()["fit"][0]["hint"]
+    assert "--edit-frame output" in hint, hint
+    offset = re.search(r"offset by \(([^)]*)\)", hint).group(1)
+    fixed = convert(f"--mesh-translate={offset.replace(' ', '')}", "--edit-frame", "output")
+    assert fixed["fit"][0]["problem"] is None, fixed["fit"]
