@@ -77,13 +77,13 @@ def read_bytes(path: str) -> bytes:
 def gunzip(data: bytes, path: str, limit: int | None = None) -> bytes:
     """The content of a gzip stream, at most ``limit`` bytes (default
     :func:`inflation_limit` of the stream's size)."""
+    bound = f"{limit} bytes" if limit is not None else _limit_text(len(data))
     limit = inflation_limit(len(data)) if limit is None else limit
     inflater = zlib.decompressobj(16 + zlib.MAX_WBITS)
     try:
         out = inflater.decompress(data, limit)
         if inflater.unconsumed_tail:
-            raise FormatError(f"the gzip stream inflates to more than {limit} bytes "
-                              f"(at most {_limit_text(len(data))})", path)
+            raise FormatError(f"the gzip stream inflates to more than {bound}", path)
         out += inflater.flush()
     except zlib.error as exc:
         raise FormatError(f"broken gzip stream ({exc})", path) from None
