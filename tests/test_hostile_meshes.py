@@ -129,6 +129,8 @@ def test_sigterm_ends_a_conversion_with_a_far_from_manifold_mesh(hostile, tmp_pa
     finally:
         if proc.poll() is None:
             proc.kill()
-    assert proc.returncode in (143, 0, 1), stderr  # 0/1: it finished before the signal
+    # 143: it unwound; -15: the signal came before the interpreter set up its handler (on a
+    # busy machine a second may not reach it); 0/1: it finished before the signal
+    assert proc.returncode in (143, -signal.SIGTERM, 0, 1), stderr
     assert "Traceback" not in stderr
     assert not [p for p in tmp_path.iterdir() if p.name != "out.glb"]
