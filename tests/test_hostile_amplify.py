@@ -10,6 +10,8 @@ file, a broken symbolic link or a link loop. The limits are those of ``limits.py
 from __future__ import annotations
 
 import io
+import os
+import struct
 import zipfile
 from pathlib import Path
 
@@ -204,3 +206,56 @@ def test_a_chain_at_the_depth_limit_poses(work, tmp_path):
                                      "--output-dir", out)
     assert code == 0, err
     assert len(list(out.iterdir())) == 5
+
+
+# ---------------------------------------------------------------------------- item 9
+
+def test_a_truncated_binary_stl_says_so(work, tmp_path):
+    stl = tmp_path / "cut.stl"
+    tri = struct.pack("<12fH", *([0.0] * 3 + [0, 0, 0, 1, 0, 0, 0, 1, 0]), 0)
+    stl.write_bytes(b"\0" * 80 + struct.pack("<I", 1000) + tri * 10)
+    out = tmp_path / "out.glb"
+    code, err, cpu, peak = run_measured(CONVERT, work["splats"], out, "--mesh", stl)
+    assert_one_line(code, err, cpu, peak, stl.name, "truncated binary STL", "1000 triangles")
+    assert not out.exists()
+
+
+def test_nan_key_times_are_refused_naming_the_source(work, tmp_path):
+    source = pose_source(tmp_path / "nan.glb", key_times=(0.0, float("nan")))
+    out = tmp_path / "poses"
+    code, err, cpu, peak = run_measured(POSE, work["asset"], "--source", source, "--fps", "24",
+                                        "--output-dir", out)
+    assert_one_line(code, err, cpu, peak, source.name, "key time is not a finite number")
+    assert not out.exists()
+
+
+def _bad_folder(root: Path, kind: str) -> Path:
+    path = root / kind
+    if kind == "file":
+        path.write_bytes(b"x")
+    elif kind == "dangling":
+        os.symlink(root / "nowhere", path)
+    else:
+        os.symlink(path, path)
+    return path
+
+
+CAUSES = {"file": "is a file, not a folder", "dangling": "is a broken symbolic link",
+          "loop": "is a symbolic link loop"}
+
+
+@pytest.mark.parametrize("kind", sorted(CAUSES))
+@pytest.mark.parametrize("how", ["convert -o DIR/", "convert --output-dir", "pose --output-dir"])
+def test_an_output_folder_that_cannot_be_one_says_why(work, tmp_path, kind, how):
+    folder = _bad_folder(tmp_path, kind)
+    before = {p.name for p in tmp_path.iterdir()}
+    if how == "convert -o DIR/":
+        args = (CONVERT, work["splats"], "-o", f"{folder}/")
+    elif how == "convert --output-dir":
+        args = (CONVERT, work["splats"], "--output-dir", folder)
+    else:
+        args = (POSE, work["asset"], "--deform", "twist=30", "--output-dir", folder)
+    code, err, cpu, peak = run_measured(*args)
+    assert_one_line(code, err, cpu, peak, str(folder), CAUSES[kind])
+    assert "File exists" not in err
+    _nothing_new(tmp_path, before)

@@ -57,6 +57,7 @@ from typing import Any
 import numpy as np
 
 from ..textsafe import safe_line
+from ..atomic import make_folder
 from ..errors import FormatError, UsageError
 from ..limits import MAX_POSES, MAX_VAT_WIDTH
 from ..progress import Progress
@@ -388,9 +389,7 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
             raise UsageError("output would overwrite the input asset", path)
     folders = {os.path.dirname(path) for path in outputs}
     for folder in sorted(f for f in folders if f):
-        if os.path.exists(folder) and not os.path.isdir(folder):
-            raise UsageError("is not a folder", folder)
-        os.makedirs(folder, exist_ok=True)
+        make_folder(folder)
 
     summary = PoseSummary(asset_path, source_label, fmt or "vat", [float(t) for t in times],
                           anchor_meshes=len(driven), splats=asset.splat_count())

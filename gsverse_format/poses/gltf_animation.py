@@ -167,6 +167,16 @@ class GltfAnimation:
                 for s in self.animation.get("samplers", [])]
         return max(ends, default=0.0)
 
+    def check_key_times(self) -> None:
+        """:class:`FormatError` when a sampler of the animation has a key time that is not a
+        finite number (its duration and every pose would be NaN)."""
+        if self.animation is None:
+            return
+        for k, s in enumerate(self.animation.get("samplers", [])):
+            if not np.all(np.isfinite(self._floats(s["input"]))):
+                raise FormatError(f"animation {self.animation.get('name', '')!r} sampler {k}: "
+                                  f"a key time is not a finite number (NaN or infinite)")
+
     def _overrides(self, t: float) -> dict[int, dict[str, np.ndarray]]:
         out: dict[int, dict[str, np.ndarray]] = {}
         if self.animation is None:
