@@ -17,7 +17,10 @@ JSON with a ``NaN`` literal; a ``.usda`` declaring 1.1 million prims and one nes
 5,000 deep; an OBJ anchor mesh whose ``mtllib`` points outside its folder (converted: the
 material file is never opened); ``.spz`` files of compressed zeros declaring millions of
 splats (zstd v4, gzip v2); a ``.sog`` whose WebP header declares 8192² pixels; anchor meshes
-far from a manifold (one OBJ polygon of 20,000 corners, 100,000 copies of one triangle).
+far from a manifold (one OBJ polygon of 20,000 corners, 100,000 copies of one triangle);
+an anchor mesh with 50,000 morph targets sharing one accessor, one at the end of a chain of
+90,000 nodes, a truncated binary STL. (The limits of ``gsverse-pose`` and ``gsverse-render``
+arguments and of ``.npz`` vertex caches are measured by ``tests/test_hostile_amplify.py``.)
 """
 from __future__ import annotations
 
@@ -215,6 +218,40 @@ def duplicate_triangles(folder: str, quick: bool) -> str:
     return _glb(os.path.join(folder, "duplicates.glb"), doc, vertices)
 
 
+def shared_morph_targets(folder: str, quick: bool) -> str:
+    """A GLB mesh of 600 triangles with 50,000 morph targets sharing one accessor (quick:
+    10,000)."""
+    targets = 10_000 if quick else 50_000
+    vertices = np.random.default_rng(0).random((1800, 3)).astype(np.float32)
+    blob = vertices.tobytes() + np.full_like(vertices, 0.01).tobytes()
+    n = len(vertices)
+    doc = _triangle_doc([{"mesh": 0}], [
+        {"bufferView": 0, "componentType": 5126, "count": n, "type": "VEC3",
+         "min": vertices.min(0).tolist(), "max": vertices.max(0).tolist()},
+        {"bufferView": 1, "componentType": 5126, "count": n, "type": "VEC3"}])
+    doc["bufferViews"] = [{"buffer": 0, "byteLength": 12 * n},
+                          {"buffer": 0, "byteOffset": 12 * n, "byteLength": 12 * n}]
+    doc["buffers"][0]["byteLength"] = len(blob)
+    doc["meshes"][0]["primitives"][0]["targets"] = [{"POSITION": 1}] * targets
+    doc["meshes"][0]["weights"] = [0] * targets
+    return _glb(os.path.join(folder, "morphs.glb"), doc, blob)
+
+
+def node_chain(folder: str, quick: bool) -> str:
+    """A triangle at the end of a chain of 90,000 nodes (quick: 20,000)."""
+    depth = 20_000 if quick else 90_000
+    nodes = [{"children": [i + 1]} for i in range(depth - 1)] + [{"mesh": 0}]
+    return _glb(os.path.join(folder, "chain.glb"), _triangle_doc(nodes), TRIANGLE)
+
+
+def truncated_stl(folder: str, quick: bool) -> str:
+    """A binary STL declaring 1,000 triangles holding 10."""
+    path = os.path.join(folder, "cut.stl")
+    with open(path, "wb") as handle:
+        handle.write(b"\0" * 80 + (1000).to_bytes(4, "little") + b"\0" * 500)
+    return path
+
+
 #: (name, builder, the limit it meets, which tools run on it).
 CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
     ("node graph, 4⁶⁰ instances", dag_bomb,
@@ -242,6 +279,11 @@ CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
      ("mesh",)),
     ("GLB mesh, one triangle many times", duplicate_triangles,
      "manifold3d after the edge counts", ("mesh",)),
+    ("GLB mesh, morph targets sharing one accessor", shared_morph_targets,
+     f"MAX_MORPH_AMPLIFICATION = {limits.MAX_MORPH_AMPLIFICATION}", ("mesh",)),
+    ("GLB mesh, node chain 90,000 deep", node_chain,
+     f"MAX_NODE_DEPTH = {limits.MAX_NODE_DEPTH:,}", ("mesh",)),
+    ("binary STL, truncated", truncated_stl, "declared triangles vs file size", ("mesh",)),
 ]
 
 

@@ -34,7 +34,7 @@ from .errors import OutputError, UsageError
 
 __all__ = ["atomic_write", "temporary_folder", "check_target", "file_mode", "is_temporary",
            "sweep_stale", "discard_temporaries", "interruptions_deferred", "outputs_written",
-           "output_error",
+           "output_error", "make_folder",
            "TEMP_MARK", "STALE_AFTER_S"]
 
 T = TypeVar("T")
@@ -207,6 +207,40 @@ def check_target(path: str, protect: tuple[str | os.PathLike | None, ...] = ()) 
             raise OutputError(f"cannot write: {folder!r} is not a folder", path)
         raise UsageError(f"output folder {folder!r} does not exist", path)
     return folder
+
+
+def _not_a_folder(path: str) -> str | None:
+    """Why ``path`` cannot be a folder: a file, a broken symbolic link or a symbolic link
+    loop (None when it is a folder or does not exist)."""
+    if os.path.isdir(path):
+        return None
+    if os.path.islink(path):
+        try:
+            os.stat(path)
+        except OSError as err:
+            if err.errno == errno.ELOOP:
+                return "is a symbolic link loop"
+            return f"is a broken symbolic link (to {os.readlink(path)!r})"
+    if os.path.lexists(path):
+        return "is a file, not a folder"
+    return None
+
+
+def make_folder(path: str | os.PathLike[str]) -> None:
+    """Make the output folder ``path`` and its parents; :class:`OutputError` naming the part
+    of ``path`` that cannot be a folder, with the true cause (a file, a broken symbolic link,
+    a symbolic link loop), or the operating system's refusal."""
+    spath = os.fspath(path)
+    clean = os.path.normpath(spath)
+    for part in reversed(list(_parents(clean))):
+        cause = _not_a_folder(part)
+        if cause is not None:
+            raise OutputError(f"cannot make the output folder: {cause}", part)
+    try:
+        os.makedirs(clean, exist_ok=True)
+    except OSError as err:
+        raise OutputError(f"cannot make the output folder: {err.strerror or err}",
+                          spath) from None
 
 
 def _parents(folder: str) -> Iterator[str]:

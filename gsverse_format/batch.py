@@ -36,6 +36,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Iterable
 
+from .atomic import make_folder
 from .batch_workers import DASK_RESOURCE, AssetResult, BatchTask, convert_one, run_dask, run_local
 from .edit import EDIT_FLAGS
 from .errors import UsageError
@@ -410,7 +411,7 @@ def run_batch(specs: list[AssetSpec], output_dir: str, *, jobs: int | None = Non
 
     existed = {t.index: os.path.exists(t.output) for t in tasks}
     report = BatchReport(output_dir, scheduler=scheduler, jobs=None if scheduler else jobs)
-    os.makedirs(output_dir, exist_ok=True)
+    make_folder(output_dir)
     progress.stage(f"converting {len(tasks)} assets")
     progress.update(0, len(tasks))
     try:

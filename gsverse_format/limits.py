@@ -12,7 +12,9 @@ __all__ = ["MAX_ASSET_BYTES", "MAX_GLTF_ARRAY_ITEMS", "MAX_DATA_URI_BYTES",
            "MAX_READ_AMPLIFICATION", "READ_AMPLIFICATION_SLACK", "MAX_MESH_FILE_BYTES",
            "MAX_USD_TEXT_BYTES", "MAX_USD_TEXT_PRIMS",
            "MAX_USD_TEXT_NESTING", "MAX_PLY_RAGGED_ROWS", "USD_CHILD_MEMORY_BASE",
-           "USD_CHILD_SECONDS_BASE", "USD_CHILD_SECONDS_PER_MIB", "usd_child_seconds"]
+           "USD_CHILD_SECONDS_BASE", "USD_CHILD_SECONDS_PER_MIB", "usd_child_seconds",
+           "MAX_VAT_WIDTH", "MAX_RENDER_PIXELS", "MAX_RENDER_SIDE", "MAX_POSES",
+           "MAX_NODE_DEPTH", "MAX_MORPH_AMPLIFICATION", "MAX_NPZ_RATIO", "NPZ_SLACK"]
 
 #: glTF: bytes one asset may occupy, the file plus every buffer it loads (8 GiB;
 #: ``gsverse-validate --max-bytes`` changes it for the validator).
@@ -40,6 +42,13 @@ MAX_SCENE_TRIANGLES = 2 ** 25
 MAX_READ_AMPLIFICATION = 4
 READ_AMPLIFICATION_SLACK = 2 ** 26
 
+#: Morph targets of an animated ``--mesh`` glTF: the accessor bytes the targets read are held
+#: to :data:`MAX_READ_AMPLIFICATION` as above, and the deltas kept (a float32 (V, 3) array per
+#: target over the whole anchor mesh, zero on the parts the targets do not move) to this many
+#: times the buffers' bytes plus :data:`READ_AMPLIFICATION_SLACK`: targets on a small part of
+#: a large scene keep more than they read, 50,000 targets sharing one accessor far more.
+MAX_MORPH_AMPLIFICATION = 32
+
 #: OBJ, STL and OFF meshes (read by trimesh, whose text parsers take about ten times the
 #: file's size): the largest file accepted (1 GiB).
 MAX_MESH_FILE_BYTES = 2 ** 30
@@ -52,6 +61,32 @@ MAX_MESH_FILE_BYTES = 2 ** 30
 MAX_USD_TEXT_BYTES = 2 ** 28
 MAX_USD_TEXT_PRIMS = 250_000
 MAX_USD_TEXT_NESTING = 256
+
+#: Animated anchor meshes (``--mesh X.glb``) and glTF pose sources: the deepest node chain
+#: (levels from a scene root) whose global matrices are composed. Checked on the node graph
+#: before any matrix is computed; a 90,000-node chain took 55 s a pose.
+MAX_NODE_DEPTH = 1024
+
+#: ``gsverse-pose --vat-width``: the widest vertex-animation texture written (16,384 texels,
+#: the largest texture width current GPUs accept; a width of 10⁹ would allocate 12 GB a row).
+MAX_VAT_WIDTH = 16384
+
+#: ``gsverse-render --size WxH``: the most pixels of one picture (2²⁴, 4096²; the renderer keeps
+#: about 80 bytes a pixel: 8192² took 5.5 GB) and the longest side (16,384).
+MAX_RENDER_PIXELS = 2 ** 24
+MAX_RENDER_SIDE = 16384
+
+#: ``gsverse-pose``: the most poses one command writes or bakes (``--fps`` times the duration,
+#: or ``--times``), counted before any pose is sampled: a typo, or a pose source whose key
+#: times run to hours, should not fill a disk.
+MAX_POSES = 10_000
+
+#: ``.npz`` vertex caches: the arrays' bytes, read from the ``.npy`` headers inside the zip
+#: before anything is loaded, may be at most ``MAX_NPZ_RATIO`` times the file's size plus
+#: ``NPZ_SLACK`` (64 MiB): vertex positions compress at most a few times, a 314-byte file of
+#: zeros declaring 10¹¹ elements does not pass.
+MAX_NPZ_RATIO = 100
+NPZ_SLACK = 2 ** 26
 
 #: PLY: rows of one element whose list properties vary in length (each row is then held as a
 #: separate array, about 0.5 KiB of memory for a few bytes of file, and parsed one by one).

@@ -12,8 +12,6 @@ import io
 import json
 import os
 import struct
-import subprocess
-import sys
 import zipfile
 from pathlib import Path
 
@@ -21,29 +19,8 @@ import numpy as np
 import pytest
 
 from helpers import random_splats
+from hostile_tools import CHILD_CPU_S, CHILD_PEAK_MIB, convert_measured
 from splat_writers import _webp, write_sog, write_spz_v2
-
-#: Generous bounds for one refusal in a child on a busy machine: CPU seconds and peak memory.
-CHILD_CPU_S = 60
-CHILD_PEAK_MIB = 1024
-
-_MEASURE = ("import resource, subprocess, sys\n"
-            "p = subprocess.run(sys.argv[1:], capture_output=True, text=True)\n"
-            "r = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
-            "sys.stdout.write(p.stdout); sys.stderr.write(p.stderr)\n"
-            "sys.stderr.write(f'\\n@@ {r.ru_utime + r.ru_stime} {r.ru_maxrss}\\n')\n"
-            "sys.exit(p.returncode)\n")
-
-
-def convert_measured(source: Path, out: Path, *extra: str) -> tuple[int, str, float, float]:
-    """``gsverse-convert SOURCE OUT --plain`` in a child of a child: exit status, its stderr,
-    and its CPU seconds and peak memory (MiB), measured by the middle process alone."""
-    proc = subprocess.run([sys.executable, "-c", _MEASURE, sys.executable, "-m",
-                           "gsverse_format.cli.convert", str(source), str(out), *(extra or ("--plain",))],
-                          capture_output=True, text=True, timeout=600)
-    err, _, tail = proc.stderr.rpartition("\n@@ ")
-    cpu, peak_kib = tail.split()
-    return proc.returncode, err.strip(), float(cpu), int(peak_kib) / 1024
 
 
 def assert_refused(source: Path, tmp_path: Path, *words: str, extra: tuple = ()) -> str:

@@ -291,7 +291,11 @@ def test_hostile_benchmark_refuses_every_input():
                 ("NaN in glTF JSON", "validate"): "JSON_INVALID",
                 ("USD text, 1.1M prims", "convert"): "prims",
                 ("USD text, nesting 5,000", "validate"): "nests brackets",
-                ("OBJ mtllib outside its folder", "convert --mesh"): "exit 0"}
+                ("OBJ mtllib outside its folder", "convert --mesh"): "exit 0",
+                ("GLB mesh, morph targets sharing one accessor", "convert --mesh"):
+                    "morph targets would read",
+                ("GLB mesh, node chain 90,000 deep", "convert --mesh"): "levels deep",
+                ("binary STL, truncated", "convert --mesh"): "truncated binary STL"}
     for key, phrase in expected.items():
         assert phrase in rows[key], (key, rows[key])
 

@@ -57,7 +57,9 @@ from typing import Any
 import numpy as np
 
 from ..textsafe import safe_line
+from ..atomic import make_folder
 from ..errors import FormatError, UsageError
+from ..limits import MAX_POSES, MAX_VAT_WIDTH
 from ..progress import Progress
 from .boundary import parse_args, run_command
 from .grammar import (Parser, add_json, add_output, add_overwrite, add_quiet, add_version,
@@ -69,8 +71,6 @@ TO_FORMATS = ("ply", "glb", "usda", "usdc", "usd", "usdz")
 USD_FORMATS = ("usda", "usdc", "usd", "usdz")
 #: ``--format`` (the older spelling of ``--to``) -> ``--to``.
 FORMATS = {"ply": "ply", "glb": "glb", "usd": "usda"}
-#: Most poses one run writes (a typo in --fps/--duration should not fill a disk).
-MAX_POSES = 100_000
 
 EPILOG = """\
 output (OUT or -o OUT, by its name):
@@ -154,8 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
     vat.add_argument("--vat-half", action="store_true", help="16-bit HALF texels (default "
                                                              "32-bit FLOAT)")
     vat.add_argument("--vat-width", type=int, metavar="N",
-                     help="texture width (default: the vertex count, at most 8192; larger "
-                          "meshes wrap onto more rows per frame)")
+                     help="texture width, 1..16384 (default: the vertex count, at most 8192; "
+                          "larger meshes wrap onto more rows per frame)")
     vat.add_argument("--vat-normalize", action="store_true",
                      help="store values scaled into [0, 1], the bounds in the header")
     add_overwrite(p)
@@ -214,12 +214,16 @@ def _times(args: argparse.Namespace, duration: float, *, one_pose: bool) -> np.n
             raise UsageError(f"--duration must be >= 0, got {args.duration}")
         count = int(math.floor(end * fps + 1e-9)) + 1
         if count > MAX_POSES:
-            raise UsageError(f"{count} poses asked for; at most {MAX_POSES}")
+            whence = f"--duration {args.duration}" if args.duration is not None else \
+                f"the source's duration {end:g} s"
+            raise UsageError(f"--fps {args.fps} over {whence} asks for {count} poses; at most "
+                             f"{MAX_POSES} per command: lower --fps, give a shorter --duration, "
+                             f"or pick --times")
         times = np.arange(count, dtype=np.float64) / fps
     if not np.all(np.isfinite(times)):
         raise UsageError("--times must be finite numbers")
     if len(times) > MAX_POSES:
-        raise UsageError(f"{len(times)} poses asked for; at most {MAX_POSES}")
+        raise UsageError(f"--times gives {len(times)} poses; at most {MAX_POSES} per command")
     values, counts = np.unique(times, return_counts=True)
     if np.any(counts > 1):
         raise UsageError(f"--times gives t={values[counts > 1][0]:g} more than once: the "
@@ -309,8 +313,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
                          "or a folder) and/or --vat OUT.exr")
     if args.vat is not None and os.path.splitext(args.vat)[1].lower() != ".exr":
         raise UsageError("--vat writes OpenEXR: give a .exr file name", args.vat)
-    if args.vat_width is not None and args.vat_width < 1:
-        raise UsageError(f"--vat-width must be at least 1, got {args.vat_width}")
+    if args.vat_width is not None and not 1 <= args.vat_width <= MAX_VAT_WIDTH:
+        raise UsageError(f"--vat-width must be 1..{MAX_VAT_WIDTH}, got {args.vat_width}")
     if not (math.isfinite(args.source_fps) and args.source_fps > 0):
         raise UsageError(f"--source-fps must be > 0, got {args.source_fps}")
     looks = parse_deformations(args.deform)
@@ -385,9 +389,7 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
             raise UsageError("output would overwrite the input asset", path)
     folders = {os.path.dirname(path) for path in outputs}
     for folder in sorted(f for f in folders if f):
-        if os.path.exists(folder) and not os.path.isdir(folder):
-            raise UsageError("is not a folder", folder)
-        os.makedirs(folder, exist_ok=True)
+        make_folder(folder)
 
     summary = PoseSummary(asset_path, source_label, fmt or "vat", [float(t) for t in times],
                           anchor_meshes=len(driven), splats=asset.splat_count())

@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from ..errors import FormatError, GsverseError, UsageError
+from ..limits import MAX_RENDER_PIXELS, MAX_RENDER_SIDE
 from ..progress import Progress
 from .boundary import parse_args, run_command
 from .grammar import Parser, add_json, add_output, add_overwrite, add_quiet, add_version, one_output
@@ -84,10 +85,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _size(text: str) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
-    if not m or not (1 <= int(m.group(1)) <= 16384 and 1 <= int(m.group(2)) <= 16384):
-        raise UsageError(f"--size {text!r}: expected WxH with 1..16384 pixels each")
-    return int(m.group(1)), int(m.group(2))
+    m = re.fullmatch(r"\s*(\d{1,9})\s*[xX]\s*(\d{1,9})\s*", text)
+    side = MAX_RENDER_SIDE
+    if not m or not (1 <= int(m.group(1)) <= side and 1 <= int(m.group(2)) <= side):
+        raise UsageError(f"--size {text!r}: expected WxH with 1..{side} pixels each")
+    width, height = int(m.group(1)), int(m.group(2))
+    if width * height > MAX_RENDER_PIXELS:
+        raise UsageError(f"--size {text!r}: {width * height} pixels; at most "
+                         f"{MAX_RENDER_PIXELS} (4096x4096) per picture")
+    return width, height
 
 
 def _background(text: str | None):

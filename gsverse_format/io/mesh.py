@@ -77,6 +77,22 @@ def _refuse_point_cloud(header: PlyHeader, path: str) -> None:
                       path)
 
 
+def _check_binary_stl(data: bytes, path: str) -> None:
+    """Refuse a truncated binary STL (an 80-byte header, a uint32 triangle count, 50 bytes a
+    triangle) before trimesh sees it: trimesh then tries the bytes as ASCII STL and fails
+    with an unrelated cause. A file that begins ``solid`` and has a ``facet`` within its
+    first kilobyte is ASCII STL and left to trimesh."""
+    if data.lstrip()[:5].lower() == b"solid" and b"facet" in data[:1024].lower():
+        return
+    if len(data) < 84:
+        raise FormatError(f"truncated binary STL: {len(data)} bytes, shorter than the 84-byte "
+                          f"header and triangle count", path)
+    count = struct.unpack_from("<I", data, 80)[0]
+    if len(data) < 84 + 50 * count:
+        raise FormatError(f"truncated binary STL: the header declares {count} triangles "
+                          f"({84 + 50 * count} bytes) but the file has {len(data)} bytes", path)
+
+
 def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
     """Read a triangle mesh; raises :class:`FormatError` with a one-line cause on bad input."""
     path = os.fspath(path)
@@ -103,6 +119,8 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
         data = _file_bytes(path)
         if ext == ".obj":
             data = strip_material_libraries(data)
+        elif ext == ".stl":
+            _check_binary_stl(data, path)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             # bytes, not the path: trimesh gets no resolver and cannot open other files

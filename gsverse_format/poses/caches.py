@@ -22,13 +22,16 @@ from __future__ import annotations
 import glob
 import os
 import re
+import zipfile
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import FormatError, GsverseError, UsageError
+from ..limits import MAX_NPZ_RATIO, NPZ_SLACK
 
-__all__ = ["VertexCache", "read_npz", "read_sequence", "sequence_files", "natural_key"]
+__all__ = ["VertexCache", "read_npz", "check_npz", "read_sequence", "sequence_files",
+           "natural_key"]
 
 SEQUENCE_SUFFIXES = (".obj", ".ply", ".stl", ".off")
 
@@ -83,10 +86,71 @@ def _frame_times(count: int, fps: float) -> np.ndarray:
     return np.arange(count, dtype=np.float64) / float(fps)
 
 
-def read_npz(path: str | os.PathLike, fps: float = 24.0) -> VertexCache:
-    """A vertex cache from an ``.npz`` (see the module docstring); :class:`FormatError` naming
-    ``path`` for what it holds."""
+def _npy_headers(zf: zipfile.ZipFile) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Shape and dtype of every ``.npy`` member, from its header alone (nothing loaded)."""
+    out = {}
+    for info in zf.infolist():
+        if not info.filename.endswith(".npy"):
+            continue
+        with zf.open(info) as f:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+            else:
+                raise FormatError(f"array {info.filename[:-4]!r} is .npy version "
+                                  f"{version[0]}.{version[1]}; 1.0 and 2.0 are read")
+        out[info.filename[:-4]] = (tuple(int(n) for n in shape), np.dtype(dtype))
+    return out
+
+
+def check_npz(path: str | os.PathLike, vertex_count: int | None = None,
+              label: str = "the anchor mesh") -> None:
+    """Check an ``.npz`` vertex cache from the ``.npy`` headers inside the zip, before any array
+    is loaded: ``vertices`` of shape (T, V, 3) or (V, 3) and a numeric dtype, V equal to
+    ``vertex_count`` when given, and the arrays' bytes at most
+    :data:`~gsverse_format.limits.MAX_NPZ_RATIO` times the file's size plus
+    :data:`~gsverse_format.limits.NPZ_SLACK`. :class:`FormatError` naming ``path``."""
     spath = os.fspath(path)
+    try:
+        size = os.path.getsize(spath)
+        with zipfile.ZipFile(spath) as zf:
+            headers = _npy_headers(zf)
+    except GsverseError as err:
+        raise type(err)(err.cause, spath) from None
+    except (OSError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as err:
+        raise FormatError(f"cannot read vertex cache: {' '.join(str(err).split())}",
+                          spath) from None
+    if "vertices" not in headers:
+        raise FormatError(f"the .npz has no array 'vertices' (T, V, 3); it has "
+                          f"{', '.join(sorted(headers)) or 'nothing'}", spath)
+    allowed = MAX_NPZ_RATIO * size + NPZ_SLACK
+    declared = 0
+    for name, (shape, dtype) in sorted(headers.items()):
+        if dtype.kind not in "biuf":
+            raise FormatError(f"array {name!r} holds {dtype}, not numbers", spath)
+        count = 1
+        for n in shape:
+            count *= n
+        declared += count * max(dtype.itemsize, 8)     # read as float64
+        if declared > allowed:
+            raise FormatError(f"array {name!r} declares {count} elements of {dtype} "
+                              f"(shape {shape}): more than {MAX_NPZ_RATIO} times the "
+                              f"file's {size} bytes plus {NPZ_SLACK >> 20} MiB", spath)
+    shape = headers["vertices"][0]
+    if not (len(shape) == 3 and shape[2] == 3) and not (len(shape) == 2 and shape[1] == 3):
+        raise FormatError(f"vertices must have shape (T, V, 3), got {shape}", spath)
+    if vertex_count is not None and shape[-2] != vertex_count:
+        raise FormatError(f"holds {shape[-2]} vertices per frame but {label} has "
+                          f"{vertex_count}", spath)
+
+
+def read_npz(path: str | os.PathLike, fps: float = 24.0) -> VertexCache:
+    """A vertex cache from an ``.npz`` (see the module docstring), checked first by
+    :func:`check_npz`; :class:`FormatError` naming ``path`` for what it holds."""
+    spath = os.fspath(path)
+    check_npz(spath)
     try:
         with np.load(spath, allow_pickle=False) as data:
             if "vertices" not in data.files:

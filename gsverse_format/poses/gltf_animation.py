@@ -36,6 +36,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import FormatError
+from ..limits import MAX_NODE_DEPTH
 from ..quaternion import to_matrix
 from ..rig import normalized_weights
 
@@ -149,6 +150,7 @@ class GltfAnimation:
                                       f"{len(anims)}")
             self.animation = anims[index]
         self._cache: dict[int, np.ndarray] = {}
+        self._rest_locals: dict[int, np.ndarray] = {}
 
     def _floats(self, index: int) -> np.ndarray:
         if index not in self._cache:
@@ -164,6 +166,16 @@ class GltfAnimation:
         ends = [float(self._floats(s["input"])[:, 0].max(initial=0.0))
                 for s in self.animation.get("samplers", [])]
         return max(ends, default=0.0)
+
+    def check_key_times(self) -> None:
+        """:class:`FormatError` when a sampler of the animation has a key time that is not a
+        finite number (its duration and every pose would be NaN)."""
+        if self.animation is None:
+            return
+        for k, s in enumerate(self.animation.get("samplers", [])):
+            if not np.all(np.isfinite(self._floats(s["input"]))):
+                raise FormatError(f"animation {self.animation.get('name', '')!r} sampler {k}: "
+                                  f"a key time is not a finite number (NaN or infinite)")
 
     def _overrides(self, t: float) -> dict[int, dict[str, np.ndarray]]:
         out: dict[int, dict[str, np.ndarray]] = {}
@@ -191,6 +203,15 @@ class GltfAnimation:
     # ----------------------------------------------------------------- transforms
 
     def _local(self, i: int, animated: dict[str, np.ndarray]) -> np.ndarray:
+        """Node ``i``'s local matrix; the nodes' own values computed once (a pose source of
+        many nodes is posed many times, and only animated nodes change)."""
+        if not animated:
+            if i not in self._rest_locals:
+                self._rest_locals[i] = self._compose(i, {})
+            return self._rest_locals[i]
+        return self._compose(i, animated)
+
+    def _compose(self, i: int, animated: dict[str, np.ndarray]) -> np.ndarray:
         node = self.nodes[i]
         if node.get("matrix") is not None:
             return np.asarray(node["matrix"], dtype=np.float64).reshape(4, 4).T
@@ -222,6 +243,9 @@ class GltfAnimation:
             i, parent, depth = stack.pop()
             if depth > len(self.nodes):
                 raise FormatError("the node hierarchy has a cycle")
+            if depth >= MAX_NODE_DEPTH:
+                raise FormatError(f"the node hierarchy is more than {MAX_NODE_DEPTH} levels "
+                                  f"deep (node {i})")
             world[i] = parent @ self._local(i, overrides.get(i, {}))
             order.append(i)
             stack.extend((c, world[i], depth + 1) for c in self.nodes[i].get("children", []))

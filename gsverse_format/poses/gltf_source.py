@@ -185,6 +185,7 @@ def open_gltf_source(path: str | os.PathLike, animation: int | str | None = 0, *
         source = GltfSource(spath, anim, instances,
                             splat_nodes=splat_nodes(anim.doc, instances) if anchored else None)
         source.rest_pose()   # reads and checks every accessor now, not at the first pose
+        anim.check_key_times()
         return source
     except GsverseError as err:
         raise FormatError(err.cause, spath) from None

@@ -13,7 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import FormatError, UsageError
-from .caches import VertexCache, read_npz, read_sequence
+from .caches import VertexCache, check_npz, read_npz, read_sequence
 from .gltf_source import open_gltf_source
 
 __all__ = ["Source", "CacheSource", "open_source", "SOURCE_KINDS"]
@@ -37,15 +37,22 @@ class Source(Protocol):
 
 class CacheSource:
     """A :class:`~.caches.VertexCache` as a source; ``match`` checks the vertex count, and an
-    offset VAT is resolved against the anchor mesh's rest pose when matched."""
+    offset VAT is resolved against the anchor mesh's rest pose when matched. An ``.npz``
+    (``npz_options``) is checked from its headers when opened and loaded when matched (after
+    its vertex count is checked on the headers) or first used."""
 
-    def __init__(self, path: str, cache: VertexCache | None, *, vat_options: dict | None = None):
+    def __init__(self, path: str, cache: VertexCache | None, *, vat_options: dict | None = None,
+                 npz_options: dict | None = None):
         self.path = path
         self.cache = cache
         self.vat_options = vat_options
+        self.npz_options = npz_options
 
     def match(self, rest: np.ndarray, label: str = "the anchor mesh") -> None:
         rest = np.asarray(rest, dtype=np.float64)
+        if self.npz_options is not None and self.cache is None:
+            check_npz(self.path, len(rest), label)
+            self.cache = read_npz(self.path, **self.npz_options)
         if self.vat_options is not None:
             from .vat import read_vat
 
@@ -57,6 +64,8 @@ class CacheSource:
                               f"has {len(rest)}", self.path)
 
     def _cache(self) -> VertexCache:
+        if self.cache is None and self.npz_options is not None:
+            self.cache = read_npz(self.path, **self.npz_options)
         if self.cache is None:
             raise UsageError("match the source to an anchor mesh first", self.path)
         return self.cache
@@ -79,7 +88,8 @@ def open_source(spec: str | os.PathLike[str], *, animation: int | str | None = 0
     if ext in (".glb", ".gltf") and os.path.isfile(spec):
         return open_gltf_source(spec, animation, prefer_anchor=True)
     if ext == ".npz":
-        return CacheSource(spec, read_npz(spec, fps))
+        check_npz(spec)
+        return CacheSource(spec, None, npz_options={"fps": fps})
     if ext == ".exr":
         if not os.path.isfile(spec):
             raise FormatError("file not found", spec)

@@ -52,6 +52,7 @@ import numpy as np
 
 from ..atomic import atomic_write
 from ..errors import FormatError, UsageError
+from ..limits import MAX_VAT_WIDTH
 from .caches import VertexCache
 
 __all__ = ["write_vat", "read_vat", "vat_layout", "MAX_WIDTH", "PREFIX"]
@@ -77,6 +78,8 @@ def vat_layout(vertex_count: int, width: int | None = None) -> tuple[int, int]:
     w = min(vertex_count, MAX_WIDTH) if width is None else int(width)
     if w < 1:
         raise UsageError(f"VAT width must be at least 1, got {w}")
+    if w > MAX_VAT_WIDTH:
+        raise UsageError(f"VAT width must be at most {MAX_VAT_WIDTH}, got {w}")
     return w, -(-vertex_count // w)
 
 

@@ -258,6 +258,19 @@ def _declared_bytes(accessors: list, ref: Any) -> int:
     return int(count) * ncomp * COMPONENT_DTYPES[int(ctype)].itemsize
 
 
+def declared_bytes(doc: dict, ref: Any) -> int:
+    """The bytes accessor ``ref`` of ``doc`` declares (0 when it cannot be told)."""
+    accessors = doc.get("accessors")
+    return _declared_bytes(accessors, ref) if isinstance(accessors, list) else 0
+
+
+def buffer_bytes(doc: dict) -> int:
+    """The bytes ``doc``'s buffers declare (valid ``byteLength`` values only)."""
+    buffers = doc.get("buffers")
+    return sum(int(b["byteLength"]) for b in (buffers if isinstance(buffers, list) else [])
+               if isinstance(b, dict) and is_int(b.get("byteLength")) and b["byteLength"] > 0)
+
+
 def check_read_amplification(doc: dict) -> None:
     """Raise ``SIZE_LIMIT_EXCEEDED`` when reading every splat primitive would decode far more
     bytes than the buffers hold: primitives sharing accessors (legal glTF) would make a small
@@ -268,12 +281,10 @@ def check_read_amplification(doc: dict) -> None:
     sizes only, checked on the raw JSON before anything is read (a ``byteLength`` larger
     than the data is refused when the buffer loads)."""
     accessors = doc.get("accessors")
-    buffers = doc.get("buffers")
     meshes = doc.get("meshes")
     if not isinstance(accessors, list) or not isinstance(meshes, list):
         return
-    held = sum(int(b["byteLength"]) for b in (buffers if isinstance(buffers, list) else [])
-               if isinstance(b, dict) and is_int(b.get("byteLength")) and b["byteLength"] > 0)
+    held = buffer_bytes(doc)
     allowed = MAX_READ_AMPLIFICATION * held + READ_AMPLIFICATION_SLACK
     total = 0
     for m, mesh in enumerate(meshes):

@@ -31,7 +31,9 @@ import numpy as np
 
 from ...errors import FormatError
 from ...rig import WEIGHTS_PATH, AnchorRig, RigAnimation, RigChannel, RigNode, normalized_weights
-from .accessors import dequantize
+from ...limits import (MAX_MORPH_AMPLIFICATION, MAX_NODE_DEPTH, MAX_READ_AMPLIFICATION,
+                       READ_AMPLIFICATION_SLACK)
+from .accessors import buffer_bytes, declared_bytes, dequantize
 from .document import Document
 from .reader import TRIANGLES
 
@@ -96,9 +98,15 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
     parent = {c: i for i, node in enumerate(nodes) for c in (node.get("children") or [])}
 
     def chain(k: int | None) -> list[int]:
+        """``k`` and its ancestors, at most :data:`~gsverse_format.limits.MAX_NODE_DEPTH`."""
         out: list[int] = []
-        while k is not None and k not in out:
+        seen: set[int] = set()
+        while k is not None and k not in seen:
+            if len(out) == MAX_NODE_DEPTH:
+                raise FormatError(f"node {out[0]} lies more than {MAX_NODE_DEPTH} levels deep "
+                                  f"in the node hierarchy")
             out.append(k)
+            seen.add(k)
             k = parent.get(k)
         return out
 
@@ -125,6 +133,8 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
             raise FormatError(f"the primitives of node {morph_node}'s mesh have different "
                               f"numbers of morph targets ({sorted(counts)})")
         target_count = counts.pop()
+        _check_morph_amplification(doc, [prim_of(pt) for pt in parts if pt.node == morph_node],
+                                   target_count, total)
 
     rig = AnchorRig()
     index: dict[int, int] = {}
@@ -238,6 +248,28 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
             "weights", [0.0] * target_count))]
     rig.animations = _animations(doc, floats, index, morph_node, target_count)
     return rig, rest
+
+
+def _check_morph_amplification(doc: dict, prims: list[dict], target_count: int,
+                               total: int) -> None:
+    """Morph targets may share one accessor (legal glTF): 50,000 targets of one accessor made
+    a 1.2 MB mesh a 1.23 GB anchor mesh. The accessor bytes the targets read (an accessor
+    counted once per use), may be at most :data:`~gsverse_format.limits.MAX_READ_AMPLIFICATION`
+    times the buffers' bytes plus :data:`~gsverse_format.limits.READ_AMPLIFICATION_SLACK`, as
+    for splat primitives, and the deltas kept (one float32 (V, 3) array per target over the
+    whole anchor mesh) :data:`~gsverse_format.limits.MAX_MORPH_AMPLIFICATION` times; declared
+    sizes, checked before any target is read."""
+    held = buffer_bytes(doc)
+    read = sum(declared_bytes(doc, target.get("POSITION")) for prim in prims
+               for target in prim.get("targets") or [] if isinstance(target, dict))
+    kept = 12 * target_count * total
+    for amount, what, ratio in ((read, "read", MAX_READ_AMPLIFICATION),
+                                (kept, "keep as deltas", MAX_MORPH_AMPLIFICATION)):
+        if amount > ratio * held + READ_AMPLIFICATION_SLACK:
+            raise FormatError(f"{target_count} morph targets would {what} {amount} bytes, more "
+                              f"than {ratio} times the {held} bytes of the buffers plus "
+                              f"{READ_AMPLIFICATION_SLACK >> 20} MiB (morph targets sharing "
+                              f"accessors)")
 
 
 def _influences(attrs: dict, floats: Any, joint_count: int, mesh: int, primitive: int

@@ -9,13 +9,13 @@ import numpy as np
 from ... import quaternion as quat
 from ...codes import Code
 from ...errors import FormatError
-from ...limits import MAX_SCENE_INSTANCES, MAX_SCENE_TRIANGLES, MAX_SCENE_VERTICES
+from ...limits import MAX_NODE_DEPTH, MAX_SCENE_INSTANCES, MAX_SCENE_TRIANGLES, MAX_SCENE_VERTICES
 from ...model import TriangleMesh
 from .container import DEFAULT_MAX_BYTES, as_index, gltf_error, is_int
 from .document import Document, open_document
 from .reader import TRIANGLES, SplatReader, input_errors
 
-__all__ = ["check_instancing", "instance_counts", "mesh_instances", "node_instances",
+__all__ = ["check_instancing", "instance_counts", "scene_depth", "mesh_instances", "node_instances",
            "read_gltf_triangles"]
 
 
@@ -97,9 +97,44 @@ def instance_counts(doc: dict) -> dict[int, int]:
     :data:`~gsverse_format.limits.MAX_SCENE_INSTANCES`. A cycle is an error
     (``GLTF_SCHEMA_VIOLATION`` at the node that closes it). Without scenes: empty.
     """
-    found = _scene_roots(doc)
+    found = _scene_order(doc)
     if found is None:
         return {}
+    roots, children, order = found
+    cap = MAX_SCENE_INSTANCES + 1
+    counts: dict[int, int] = dict.fromkeys(order, 0)
+    for root in roots:
+        counts[root] = min(cap, counts[root] + 1)
+    for i in reversed(order):
+        for c in children[i]:
+            counts[c] = min(cap, counts[c] + counts[i])
+    return counts
+
+
+def scene_depth(doc: dict) -> tuple[int, int | None]:
+    """(levels, deepest node) of the default scene's node graph: the longest path from a root,
+    a root alone being one level; (0, None) without scenes. One pass, as
+    :func:`instance_counts`."""
+    found = _scene_order(doc)
+    if found is None:
+        return 0, None
+    roots, children, order = found
+    depth: dict[int, int] = dict.fromkeys(order, 0)
+    for root in roots:
+        depth[root] = 1
+    for i in reversed(order):
+        for c in children[i]:
+            depth[c] = max(depth[c], depth[i] + 1)
+    deepest = max(depth, key=depth.__getitem__, default=None)
+    return (depth[deepest] if deepest is not None else 0), deepest
+
+
+def _scene_order(doc: dict) -> tuple[list[int], dict[int, list[int]], list[int]] | None:
+    """(roots, children, post-order) of the default scene's node graph, every node after all
+    of its descendants; None without scenes; ``GLTF_SCHEMA_VIOLATION`` for a cycle."""
+    found = _scene_roots(doc)
+    if found is None:
+        return None
     nodes, roots, _ = found
     children: dict[int, list[int]] = {}
     state: dict[int, int] = {}  # 1: on the current path, 2: done
@@ -128,14 +163,7 @@ def instance_counts(doc: dict) -> dict[int, int]:
                 state[i] = 2
                 order.append(i)
                 stack.pop()
-    cap = MAX_SCENE_INSTANCES + 1
-    counts: dict[int, int] = dict.fromkeys(order, 0)
-    for root in roots:
-        counts[root] = min(cap, counts[root] + 1)
-    for i in reversed(order):
-        for c in children[i]:
-            counts[c] = min(cap, counts[c] + counts[i])
-    return counts
+    return roots, children, order
 
 
 def _primitive_size(doc: dict, prim: Any) -> tuple[int, int]:
@@ -160,9 +188,10 @@ def _primitive_size(doc: dict, prim: Any) -> tuple[int, int]:
 
 def check_instancing(doc: dict) -> None:
     """Raise ``SIZE_LIMIT_EXCEEDED`` when flattening the default scene would visit more node
-    instances, or make more mesh instances, vertices or triangles, than the limits of
-    :mod:`gsverse_format.limits` (counted by :func:`instance_counts` and the accessor counts,
-    before any expansion); ``GLTF_SCHEMA_VIOLATION`` for a node cycle."""
+    instances, or make more mesh instances, vertices or triangles, or is deeper, than the
+    limits of :mod:`gsverse_format.limits` (counted by :func:`instance_counts`,
+    :func:`scene_depth` and the accessor counts, before any expansion);
+    ``GLTF_SCHEMA_VIOLATION`` for a node cycle."""
     meshes = _array(doc.get("meshes"), "meshes", "/meshes")
     found = _scene_roots(doc)
     uses: list[tuple[int | None, Any, int]]
@@ -170,6 +199,10 @@ def check_instancing(doc: dict) -> None:
         uses = [(None, m, 1) for m in range(len(meshes))]
     else:
         nodes = found[0]
+        levels, deepest = scene_depth(doc)
+        if levels > MAX_NODE_DEPTH:
+            raise gltf_error(Code.SIZE_LIMIT_EXCEEDED, f"the scene's node hierarchy is {levels} "
+                             f"levels deep, more than {MAX_NODE_DEPTH}", f"/nodes/{deepest}")
         counts = instance_counts(doc)
         visits = 0
         for node, n in counts.items():  # every node visit costs a matrix, mesh or not
