@@ -211,3 +211,4 @@ def test_the_validator_reports_the_same_faults_in_an_output_file(tmp_path, fault
     report = validate_file(d.write(tmp_path, f"{fault}.glb"))
     found = [f for f in report.findings if f.code == code]
     assert found and all(f.severity == Severity.ERROR for f in found), report.findings
+
