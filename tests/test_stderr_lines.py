@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from test_hostile_rigs import assert_refused
 
@@ -53,3 +55,37 @@ def test_native_prints_are_held_and_the_others_written_back():
     assert proc.stderr == "a line of its own\n", proc.stderr
     assert proc.stdout == ("held: ['[WARNING] Found out-of-bound points: 3', "
                            "'[WARNING] Found zero-length normals: 4']\n"), proc.stdout
+
+
+@pytest.fixture(scope="module")
+def capsule_glb(tmp_path_factory):
+    """The example's splats anchored to its mesh, built here."""
+    import gsverse_format as gv
+
+    root = Path(__file__).resolve().parent.parent / "examples" / "capsule"
+    path = tmp_path_factory.mktemp("capsule") / "capsule.glb"
+    gv.convert(root / "splats.ply", path, mesh=str(root / "mesh.obj"))
+    return path
+
+
+@pytest.mark.parametrize("command, args, words", [
+    ("render", ("--camera", "eye=1e300,0,0 target=0,0,0"), ("eye=", "within ±1e+12")),
+    ("render", ("--camera", "eye=0,0,3 target=0,0,0 up=1e300,0,0"), ("up=", "within")),
+    ("render", ("--deform", "stretch=1e300"), ("stretch factor must lie in",)),
+    ("pose", ("--deform", "shake=1e300", "--times", "0", "0.5"), ("shake amount must lie in",)),
+    ("pose", ("--deform", "stretch=1e300"), ("stretch factor must lie in",)),
+])
+def test_extreme_cameras_and_quick_looks_are_usage_errors_without_numpy_warnings(
+        tmp_path, capsule_glb, command, args, words):
+    """Amounts whose products overflow float64 (NumPy printed RuntimeWarnings with its own
+    file paths) are refused before any work: exit 2, one line, nothing written."""
+    out = tmp_path / ("out.png" if command == "render" else "out.ply")
+    proc = subprocess.run([sys.executable, "-m", f"gsverse_format.cli.{command}",
+                           str(capsule_glb), str(out), *args], capture_output=True, text=True,
+                          timeout=600)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2, err
+    assert len(err.splitlines()) == 1 and err.startswith(f"gsverse-{command}: error: "), err
+    for word in words:
+        assert word in err, err
+    assert not list(tmp_path.iterdir())
