@@ -40,9 +40,18 @@ def native_output(hold: tuple[str, ...]) -> Iterator[NativeOutput]:
     yielded :class:`NativeOutput` and write the others to stderr."""
     out = NativeOutput()
     for stream in (sys.stdout, sys.stderr):
-        stream.flush()
+        if stream is not None:
+            stream.flush()
     _flush_c_stdio()
-    saved = [os.dup(1), os.dup(2)]
+    saved: list[int] = []
+    try:
+        saved.append(os.dup(1))
+        saved.append(os.dup(2))
+    except OSError:   # a descriptor is closed: nothing can reach a terminal through it
+        for fd in saved:
+            os.close(fd)
+        yield out
+        return
     try:
         with tempfile.TemporaryFile() as held:
             os.dup2(held.fileno(), 1)
@@ -51,7 +60,8 @@ def native_output(hold: tuple[str, ...]) -> Iterator[NativeOutput]:
                 yield out
             finally:
                 for stream in (sys.stdout, sys.stderr):
-                    stream.flush()
+                    if stream is not None:
+                        stream.flush()
                 _flush_c_stdio()
                 os.dup2(saved[0], 1)
                 os.dup2(saved[1], 2)
@@ -59,7 +69,7 @@ def native_output(hold: tuple[str, ...]) -> Iterator[NativeOutput]:
                 lines = held.read().decode("utf-8", "replace").splitlines()
                 out.held = [line for line in lines if line.startswith(hold)]
                 rest = [line for line in lines if not line.startswith(hold)]
-                if rest:
+                if rest and sys.stderr is not None:
                     sys.stderr.write("".join(line + "\n" for line in rest))
                     sys.stderr.flush()
     finally:
