@@ -4,6 +4,8 @@ animation channels that drive them. Reported by :class:`~gsverse_format.codes.Co
 drawn-or-hidden question is :mod:`.anchor`'s ``ANCHOR_MESH_INSTANTIATED``."""
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from gsverse_format.codes import Code
@@ -15,8 +17,6 @@ from gsverse_format.rig_checks import (is_index, joints_out_of_range, key_times_
 from .container import Context
 
 __all__ = ["check_rig", "WEIGHT_SUM_TOLERANCE"]
-
-_is_index = is_index
 
 
 def check_rig(ctx: Context, m: int, p: int, node_i: int, vertex_count: int) -> None:
@@ -53,14 +53,14 @@ def check_rig(ctx: Context, m: int, p: int, node_i: int, vertex_count: int) -> N
         return
     skins = ctx.array("skins")
     s = node["skin"]
-    if not _is_index(s, len(skins)) or not isinstance(skins[s], dict):
+    if not is_index(s, len(skins)) or not isinstance(skins[s], dict):
         ctx.issues.add(Code.ANCHOR_SKIN_INVALID, f"the anchor node's skin {s!r} does not "
                        f"exist (there are {len(skins)} skins)", pointer=f"/nodes/{node_i}/skin")
         return
     skin = skins[s]
     joints = skin.get("joints")
     if not isinstance(joints, list) or not joints or not all(
-            _is_index(j, len(nodes)) for j in joints):
+            is_index(j, len(nodes)) for j in joints):
         ctx.issues.add(Code.ANCHOR_SKIN_INVALID, "the skin's joints must be a non-empty list "
                        "of existing nodes", pointer=f"/skins/{s}/joints")
         return
@@ -126,7 +126,7 @@ def _check_animations(ctx: Context, node_i: int, target_count: int) -> None:
             if not isinstance(target, dict) or "node" not in target:
                 continue   # a target without a node is left to extensions
             where = f"/animations/{a}/channels/{c}/target"
-            if not _is_index(target["node"], len(nodes)):
+            if not is_index(target["node"], len(nodes)):
                 ctx.issues.add(Code.ANCHOR_ANIMATION_TARGET_INVALID, f"the channel targets node "
                                f"{target['node']!r}, which does not exist", pointer=where)
             elif target["node"] == node_i and target.get("path") == "weights" \
@@ -136,16 +136,16 @@ def _check_animations(ctx: Context, node_i: int, target_count: int) -> None:
                                "targets", pointer=where)
             elif target["node"] == node_i and target.get("path") == "weights" \
                     or target.get("path") in _WIDTH:
-                width = _WIDTH.get(target.get("path"), target_count)
+                width = _WIDTH.get(str(target.get("path")), target_count)
                 _check_sampler(ctx, anim, ch.get("sampler"), width, f"/animations/{a}")
 
 
-def _check_sampler(ctx: Context, anim: dict, s: object, width: int, pointer: str) -> None:
+def _check_sampler(ctx: Context, anim: dict, s: Any, width: int, pointer: str) -> None:
     """The key times and values of a sampler that moves a node or the anchor node's morph
     weights: NON_FINITE_VALUE for NaN or infinity, ANCHOR_ANIMATION_SAMPLER_INVALID for the
     other rules of :mod:`gsverse_format.rig_checks` (the web reader's codes for the same)."""
     samplers = anim.get("samplers")
-    if not isinstance(samplers, list) or not _is_index(s, len(samplers)) \
+    if not isinstance(samplers, list) or not is_index(s, len(samplers)) \
             or not isinstance(samplers[s], dict):
         return   # an unresolved sampler is the glTF schema's finding
     sampler = samplers[s]

@@ -245,11 +245,11 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
             rig.targets.append(delta.astype(np.float32))
         node = nodes[morph_node]
         mesh = meshes[node["mesh"]]
-        for where, owner in ((f"node {morph_node}", node), (f"mesh {node['mesh']}", mesh)):
+        for holder, owner in ((f"node {morph_node}", node), (f"mesh {node['mesh']}", mesh)):
             problem = None if "weights" not in owner else weights_count_problem(
                 owner["weights"], target_count)
             if problem:
-                raise FormatError(f"the default morph weights of {where} {problem}")
+                raise FormatError(f"the default morph weights of {holder} {problem}")
         rig.weights = [float(w) for w in node.get("weights", mesh.get(
             "weights", [0.0] * target_count))]
     rig.animations = _animations(doc, floats, index, morph_node, target_count)
