@@ -64,6 +64,7 @@ from gsverse_format.converters.base import SourceResult
 from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.meshops import bbox_diagonal, decimate, face_components, mesh_stats, repair
 from gsverse_format.model import SplatCloud, TriangleMesh
+from gsverse_format.native_output import native_output
 from gsverse_format.nearest import nearest_triangles
 from gsverse_format.quaternion import normalize, to_matrix
 
@@ -177,6 +178,11 @@ def _select_points(splats: SplatCloud, min_opacity: float) -> tuple[np.ndarray, 
     return np.flatnonzero(keep), note
 
 
+#: what PoissonRecon prints on the terminal past Python (out-of-bound points, zero-length or
+#: undefined normals): held and made summary notes (gsverse_format.native_output)
+_POISSON_WARNING = ("[WARNING] Found ",)
+
+
 def _default_threads() -> int:
     """Half the usable cores: Poisson's OpenMP threads spin while waiting, so with every core
     requested it slows down several-fold as soon as other processes compete for the cores."""
@@ -273,12 +279,15 @@ def build_anchor_mesh(splats: SplatCloud, faces: int | None = DEFAULT_FACES,
     import pymeshlab
 
     try:
-        v, f, q = _poisson(pts, normals, weights, depth,
-                           _default_threads() if threads is None else max(1, int(threads)))
+        with native_output(_POISSON_WARNING) as printed:
+            v, f, q = _poisson(pts, normals, weights, depth,
+                               _default_threads() if threads is None else max(1, int(threads)))
     except pymeshlab.PyMeshLabException as exc:   # the filter refused these points
         raise FormatError(f"screened Poisson reconstruction failed ({type(exc).__name__}: "
                           f"{exc})".splitlines()[0] + "; pass a mesh with --mesh") from None
     report["seconds"]["poisson"] = time.perf_counter() - t1
+    report["notes"].extend(f"screened Poisson: {line.removeprefix('[WARNING]').strip()}"
+                           for line in printed.held)
     report["poisson_faces"] = int(len(f))
     if len(f) == 0:
         raise FormatError("screened Poisson produced no surface from the splat centres; "

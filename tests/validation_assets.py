@@ -32,7 +32,7 @@ KHR = "KHR_gaussian_splatting"
 ANCHOR = EXTENSION_NAME
 ROTATION, SCALE, OPACITY = f"{KHR}:ROTATION", f"{KHR}:SCALE", f"{KHR}:OPACITY"
 _DTYPES = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
-_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+_NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 JSON_CHUNK, BIN_CHUNK = 0x4E4F534A, 0x004E4942
 
 
@@ -738,6 +738,13 @@ def _(folder):
 def _(folder):
     return _edited(folder, "anim-target.glb", lambda d: d.doc["animations"][0]["channels"][0][
         "target"].update(node=999), _rigged)
+
+
+@trigger("ANCHOR_ANIMATION_SAMPLER_INVALID")
+def _(folder):
+    def edit(d):   # key times 0, 1 become 0, -1: they decrease
+        d.values(d.doc["animations"][0]["samplers"][0]["input"])[-1] = -1.0
+    return _edited(folder, "anim-times.glb", edit, _rigged)
 
 
 @trigger("ANCHOR_MESH_MULTIPLE_INSTANCES")

@@ -119,8 +119,9 @@ CONTAINER_ENTRIES: list[Row] = [
      "bufferView.byteOffset + accessor.byteOffset is not a multiple of the component size, or a "
      "splat vertex attribute's offset or stride is not a multiple of 4.", "/accessors/{i}",
      "Align the data (the writer of this toolkit aligns every view to 4 bytes)."),
-    (Code.NON_FINITE_VALUE, "ERROR", "Accessors", "NaN or infinity in splat data, anchor data or "
-     "anchor mesh positions.", "the attribute or extension property", "Remove or repair the "
+    (Code.NON_FINITE_VALUE, "ERROR", "Accessors", "NaN or infinity in splat data, anchor data, "
+     "anchor mesh positions, or the rig of an animated anchor mesh (inverse bind matrices, "
+     "morph target deltas, animation key times and values).", "the attribute or extension property", "Remove or repair the "
      "affected splats."),
 ]
 

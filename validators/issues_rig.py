@@ -34,4 +34,10 @@ RIG_ENTRIES: list[Row] = [
      "that does not exist, or animates the morph weights of an anchor node whose mesh has no "
      "morph targets.", "/animations/{a}/channels/{c}/target",
      "Target existing nodes; animate weights only of morphed meshes."),
+    (Code.ANCHOR_ANIMATION_SAMPLER_INVALID, "ERROR", _G, "The sampler of a channel that moves "
+     "a node or the anchor node's morph weights has no key times or key times that decrease "
+     "(glTF 2.0 asks for increasing times), an unknown interpolation, or a value count other "
+     "than the key count times the values per key (three times for CUBICSPLINE). NaN or "
+     "infinity there is NON_FINITE_VALUE.", "/animations/{a}/samplers/{s}/{input|output}",
+     "Write increasing key times and one value per key (three for CUBICSPLINE)."),
 ]

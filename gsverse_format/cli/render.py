@@ -152,6 +152,10 @@ def _poses(args, asset):
         if name not in DEFORMATIONS or not np.isfinite(value):
             raise UsageError(f"--deform {args.deform!r}: expected stretch=FACTOR, twist=DEGREES "
                              "or bend=DEGREES")
+        from ..poses.analytic import MAX_STRETCH
+        if name == "stretch" and not 1.0 / MAX_STRETCH <= value <= MAX_STRETCH:
+            raise UsageError(f"--deform {args.deform!r}: a stretch factor must lie in "
+                             f"{1.0 / MAX_STRETCH:g}..{MAX_STRETCH:g}")
         return deform_vertices(asset, name, value), f"{name} {value:g}"
     return None, "rest"
 

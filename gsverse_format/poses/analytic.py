@@ -152,6 +152,13 @@ class QuickLook:
         return v + move + rng.normal(0.0, 0.25 * self.amount * diag, v.shape)
 
 
+#: The largest stretch factor (and the smallest, its inverse) and shake amount (in bounding-box
+#: diagonals) of a quick look: beyond them the posed splats' covariances and positions overflow
+#: float64 products (NumPy warned of it on stderr) long before anything is worth looking at.
+MAX_STRETCH = 1e6
+MAX_SHAKE = 1e3
+
+
 def parse_deformations(specs: list[str] | None) -> list[QuickLook]:
     """``["stretch=1.5", "twist=90"]`` -> quick looks; :class:`UsageError` for anything else."""
     out = []
@@ -167,9 +174,11 @@ def parse_deformations(specs: list[str] | None) -> list[QuickLook]:
             raise UsageError(f"--deform {spec!r}: the amount must be a number") from None
         if not np.isfinite(amount):
             raise UsageError(f"--deform {spec!r}: the amount must be finite")
-        if kind == "stretch" and amount <= 0:
-            raise UsageError(f"--deform {spec!r}: a stretch factor must be > 0")
-        if kind == "shake" and amount < 0:
-            raise UsageError(f"--deform {spec!r}: a shake amount must be >= 0")
+        if kind == "stretch" and not 1.0 / MAX_STRETCH <= amount <= MAX_STRETCH:
+            raise UsageError(f"--deform {spec!r}: a stretch factor must lie in "
+                             f"{1.0 / MAX_STRETCH:g}..{MAX_STRETCH:g}")
+        if kind == "shake" and not 0.0 <= amount <= MAX_SHAKE:
+            raise UsageError(f"--deform {spec!r}: a shake amount must lie in 0..{MAX_SHAKE:g} "
+                             f"(fractions of the bounding-box diagonal)")
         out.append(QuickLook(kind, amount))
     return out

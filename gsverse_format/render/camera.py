@@ -17,6 +17,12 @@ import numpy as np
 __all__ = ["Camera", "look_at", "frame_bounds", "turntable", "parse_camera", "CameraSpecError"]
 
 
+#: The largest |coordinate| of a ``--camera`` eye, target or up (metres): squared lengths stay
+#: far from float64 overflow (about 1e154; NumPy warned of it on stderr), and a camera farther
+#: than this sees any float32 asset as less than a pixel.
+MAX_CAMERA_COORDINATE = 1e12
+
+
 class CameraSpecError(ValueError):
     """A ``--camera`` specification that cannot be parsed."""
 
@@ -135,6 +141,9 @@ def _vec(text: str, key: str) -> tuple[float, float, float]:
         raise CameraSpecError(f"{key}={text!r}: expected three comma-separated numbers") from None
     if len(parts) != 3 or not all(math.isfinite(p) for p in parts):
         raise CameraSpecError(f"{key}={text!r}: expected three finite comma-separated numbers")
+    if max(abs(p) for p in parts) > MAX_CAMERA_COORDINATE:
+        raise CameraSpecError(f"{key}={text!r}: coordinates must lie within "
+                              f"±{MAX_CAMERA_COORDINATE:g}")
     return parts[0], parts[1], parts[2]
 
 

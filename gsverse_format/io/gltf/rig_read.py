@@ -33,6 +33,8 @@ from ...errors import FormatError
 from ...rig import WEIGHTS_PATH, AnchorRig, RigAnimation, RigChannel, RigNode, normalized_weights
 from ...limits import (MAX_MORPH_AMPLIFICATION, MAX_NODE_DEPTH, MAX_READ_AMPLIFICATION,
                        READ_AMPLIFICATION_SLACK)
+from ...rig_checks import (is_index, joints_out_of_range, key_times_problem, non_finite_problem,
+                           sampler_count_problem, weights_count_problem)
 from .accessors import buffer_bytes, declared_bytes, dequantize
 from .document import Document
 from .reader import TRIANGLES
@@ -193,6 +195,10 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
             if len(ibm) < len(mine):
                 raise FormatError(f"skin {skin_i} has {len(mine)} joints but "
                                   f"{len(ibm)} inverse bind matrices")
+            problem = non_finite_problem(ibm, "matrices")
+            if problem:
+                raise FormatError(f"the inverse bind matrices of skin {skin_i} (accessor "
+                                  f"{skin['inverseBindMatrices']}) {problem}")
         else:
             ibm = np.broadcast_to(np.eye(4), (len(mine), 4, 4))
         where = np.array([joints.index(j) for j in mine], np.intp)
@@ -239,11 +245,21 @@ def _read_rig(document: Document, instances: list[tuple[int | None, int, np.ndar
                 target = prim_of(pt)["targets"][k]
                 if "POSITION" in target:
                     rows = slice(pt.start, pt.start + pt.count)
-                    delta[rows] = np.einsum("nij,nj->ni", linear[rows],
-                                            floats(target["POSITION"])[:, :3])
+                    source = floats(target["POSITION"])[:, :3]
+                    problem = non_finite_problem(source, "deltas")
+                    if problem:
+                        raise FormatError(f"the POSITION deltas of morph target {k} of mesh "
+                                          f"{pt.mesh} primitive {pt.primitive} (accessor "
+                                          f"{target['POSITION']}) {problem}")
+                    delta[rows] = np.einsum("nij,nj->ni", linear[rows], source)
             rig.targets.append(delta.astype(np.float32))
         node = nodes[morph_node]
         mesh = meshes[node["mesh"]]
+        for holder, owner in ((f"node {morph_node}", node), (f"mesh {node['mesh']}", mesh)):
+            problem = None if "weights" not in owner else weights_count_problem(
+                owner["weights"], target_count)
+            if problem:
+                raise FormatError(f"the default morph weights of {holder} {problem}")
         rig.weights = [float(w) for w in node.get("weights", mesh.get(
             "weights", [0.0] * target_count))]
     rig.animations = _animations(doc, floats, index, morph_node, target_count)
@@ -291,9 +307,14 @@ def _influences(attrs: dict, floats: Any, joint_count: int, mesh: int, primitive
     wt = floats(attrs["WEIGHTS_0"])
     if jn.shape[1:] != (4,) or wt.shape != jn.shape:
         raise FormatError(f"{where}: JOINTS_0/WEIGHTS_0 must be VEC4 of one count each")
-    if jn.size and (jn.min() < 0 or jn.max() >= joint_count):
-        raise FormatError(f"{where}: JOINTS_0 refers to joint {int(jn.max())} of a skin "
-                          f"with {joint_count} joints")
+    bad = joints_out_of_range(jn, joint_count)
+    if bad.size:
+        raise FormatError(f"{where}: JOINTS_0 (accessor {attrs['JOINTS_0']}) of {bad.size} "
+                          f"vertices names a joint not below the skin's {joint_count} joints "
+                          f"(vertex {int(bad[0])}: {jn[bad[0]].tolist()})")
+    problem = non_finite_problem(wt, "vertices")
+    if problem:
+        raise FormatError(f"{where}: WEIGHTS_0 (accessor {attrs['WEIGHTS_0']}) {problem}")
     return jn, wt
 
 
@@ -308,13 +329,19 @@ def _inverse(matrix: np.ndarray, fallback: np.ndarray | None) -> np.ndarray:
 
 def _animations(doc: dict, floats: Any, index: dict[int, int], morph_node: int | None,
                 target_count: int) -> list[RigAnimation]:
-    """The channels that move kept nodes or the morphed node's weights."""
+    """The channels that move kept nodes or the morphed node's weights; refused: a channel
+    aimed at a node that does not exist, and a kept channel whose sampler breaks a rule of
+    :mod:`gsverse_format.rig_checks`."""
     out = []
+    node_count = len(doc.get("nodes") or [])
     for a, anim in enumerate(doc.get("animations") or []):
         channels = []
-        for ch in anim.get("channels", []):
+        for c, ch in enumerate(anim.get("channels", [])):
             target = ch.get("target", {})
             tn, path = target.get("node"), target.get("path")
+            if "node" in target and not is_index(tn, node_count):
+                raise FormatError(f"animation {a} channel {c} targets node {tn!r}, which does "
+                                  f"not exist (there are {node_count} nodes)")
             if tn in index and path in _TRS:
                 rnode: int | None = index[tn]
             elif tn == morph_node and path == WEIGHTS_PATH and target_count:
@@ -325,8 +352,17 @@ def _animations(doc: dict, floats: Any, index: dict[int, int], morph_node: int |
             times = floats(sampler["input"]).reshape(-1)
             values = floats(sampler["output"])
             width = target_count if path == WEIGHTS_PATH else (4 if path == "rotation" else 3)
+            interpolation = sampler.get("interpolation", "LINEAR")
+            for what, problem in (
+                    (f"key times (accessor {sampler['input']})", key_times_problem(times)),
+                    (f"values (accessor {sampler['output']})",
+                     sampler_count_problem(len(times), values.size, width, interpolation)
+                     or non_finite_problem(values.reshape(-1, 1), "values"))):
+                if problem:
+                    raise FormatError(f"animation {a} channel {c} ({path} of node {tn}): its "
+                                      f"{what} {problem}")
             channels.append(RigChannel(rnode, path, times, values.reshape(-1, width),
-                                       sampler.get("interpolation", "LINEAR")))
+                                       interpolation))
         if channels:
             out.append(RigAnimation(anim.get("name", f"animation {a}"), channels))
     return out

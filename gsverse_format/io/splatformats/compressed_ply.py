@@ -71,6 +71,16 @@ def _lerp(lo: np.ndarray, hi: np.ndarray, t: np.ndarray) -> np.ndarray:
     return lo * (1.0 - t) + hi * t
 
 
+def _scalar_properties(path: str, element: str, array: np.ndarray, names: tuple | list) -> None:
+    """Refuse a list property among ``names`` of ``element``: the layout stores one number
+    per chunk bound, packed field and SH byte."""
+    for name in names:
+        field = array.dtype[name]
+        if field.shape != () or field.kind not in "biuf":
+            raise FormatError(f"compressed PLY property {element}.{name} is a list; the "
+                              f"layout stores one number there", path)
+
+
 def read_compressed_ply(path: str | os.PathLike[str]) -> Decoded:
     """The splats of a compressed PLY, in the file's frame (the 3DGS frame)."""
     path = os.fspath(path)
@@ -82,6 +92,8 @@ def read_compressed_ply(path: str | os.PathLike[str]) -> Decoded:
         [p for p in _CHUNK if p not in (chunk.dtype.names or ())]
     if missing:
         raise FormatError(f"compressed PLY without property {missing[0]!r}", path)
+    _scalar_properties(path, "chunk", chunk, (chunk.dtype.names or ()))
+    _scalar_properties(path, "vertex", vertex, _PACKED)
     n = len(vertex)
     if len(chunk) * 256 < n:
         raise FormatError(f"{len(chunk)} chunks cover {len(chunk) * 256} splats, the file has "
@@ -117,6 +129,7 @@ def read_compressed_ply(path: str | os.PathLike[str]) -> Decoded:
                 or len(names) not in _SH_DEGREE:
             raise FormatError(f"the 'sh' element must hold f_rest_0.. (9, 24 or 45 of them) for "
                               f"each of the {n} splats", path)
+        _scalar_properties(path, "sh", sh_el, names)
         degree = _SH_DEGREE[len(names)]
         raw = np.stack([sh_el[name].astype(np.float64) for name in names], axis=1)
         t = np.where(raw == 0, 0.0, np.where(raw == 255, 1.0, (raw + 0.5) / 256.0))

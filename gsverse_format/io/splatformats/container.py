@@ -30,6 +30,7 @@ import io
 import json
 import os
 import zipfile
+import warnings
 import zlib
 from dataclasses import dataclass, field
 from typing import Any
@@ -204,7 +205,12 @@ def decode_webp(data: bytes, name: str, path: str) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(io.BytesIO(data)) as image:
+        # Pillow warns (on stderr, DecompressionBombWarning) at an image size ours refuse
+        # below (MAX_IMAGE_PIXELS, inflation_limit): the check that applies is ours.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(io.BytesIO(data))
+        with image:
             if image.width * image.height > MAX_IMAGE_PIXELS:
                 raise FormatError(f"image {name!r} has {image.width}x{image.height} pixels, "
                                   f"more than {MAX_IMAGE_PIXELS}", path)
