@@ -82,6 +82,13 @@ def read_compressed_ply(path: str | os.PathLike[str]) -> Decoded:
         [p for p in _CHUNK if p not in (chunk.dtype.names or ())]
     if missing:
         raise FormatError(f"compressed PLY without property {missing[0]!r}", path)
+    for element, el_name in ((chunk, "chunk"), (vertex, "vertex")) + \
+            (((ply["sh"], "sh"),) if "sh" in ply else ()):
+        for name in element.dtype.names or ():
+            kind = element.dtype[name]
+            if kind.shape != () or kind.kind not in "iuf":   # a list property
+                raise FormatError(f"compressed PLY property {el_name} {name!r} must be a "
+                                  f"number, not a list", path)
     n = len(vertex)
     if len(chunk) * 256 < n:
         raise FormatError(f"{len(chunk)} chunks cover {len(chunk) * 256} splats, the file has "

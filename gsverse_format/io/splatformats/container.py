@@ -29,6 +29,7 @@ from __future__ import annotations
 import io
 import json
 import os
+import warnings
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -149,7 +150,8 @@ def open_bundle(path: str) -> tuple[Bundle, dict[str, Any]]:
     if data[:4] == b"PK\x03\x04":
         try:
             archive = zipfile.ZipFile(io.BytesIO(data))
-        except (zipfile.BadZipFile, UnicodeDecodeError, ValueError, EOFError) as exc:
+        except (zipfile.BadZipFile, UnicodeDecodeError, ValueError, EOFError,
+                NotImplementedError, OSError) as exc:   # NotImplementedError: zip version
             raise FormatError(f"broken zip archive ({exc})", path) from None
         bundle = Bundle(path, archive, None,
                         {i.filename: i.compress_size for i in archive.infolist()})
@@ -204,7 +206,11 @@ def decode_webp(data: bytes, name: str, path: str) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(io.BytesIO(data)) as image:
+        with warnings.catch_warnings():
+            # Pillow warns above its own pixel limit; the two checks below are the limits here
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            image = Image.open(io.BytesIO(data))
+        with image:
             if image.width * image.height > MAX_IMAGE_PIXELS:
                 raise FormatError(f"image {name!r} has {image.width}x{image.height} pixels, "
                                   f"more than {MAX_IMAGE_PIXELS}", path)

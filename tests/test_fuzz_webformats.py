@@ -1,0 +1,163 @@
+"""The structure-aware fuzz targets of the web splat formats (``.spz``, ``.sog``, ``.ksplat``,
+compressed PLY) and of the web plugin's JS reader: short seeded runs find no internal error or
+hang (the long runs are ``python -m fuzz --runs 100000 --kinds spz`` and so on), the
+mutations reach the structures they name, and the inputs the long runs found are refused as
+bad input."""
+from __future__ import annotations
+
+import io
+import random
+import shutil
+import struct
+import subprocess
+import sys
+import warnings
+import zipfile
+
+import pytest
+
+from helpers import fuzz_module
+from test_validate_fuzz import ROOT, _counts, _run
+
+web = fuzz_module("webformats")
+
+
+@pytest.mark.parametrize("kind, seed, targets", [
+    ("spz", 21, {"read_spz", "read"}),
+    ("sog", 22, {"read_sog", "read"}),
+    ("ksplat", 23, {"read_ksplat", "read"}),
+    ("cply", 24, {"read_compressed_ply", "read"}),
+])
+def test_short_web_format_fuzz_run_has_no_internal_error(tmp_path, kind, seed, targets):
+    counts = _counts(_run(tmp_path, kind, 200, seed))
+    assert set(counts) == targets
+    for stats in counts.values():
+        assert stats["runs"] == 200 and stats["internal"] == stats["hang"] == 0
+        assert stats["ok"] > 0 and stats["refused"] > 0   # seeds read; mutations reach checks
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="needs Node")
+def test_short_js_reader_fuzz_run_has_no_internal_error(tmp_path):
+    counts = _counts(_run(tmp_path, "js", 200, 25))
+    assert set(counts) == {"js_reader"}
+    stats = counts["js_reader"]
+    assert stats["runs"] == 200 and stats["internal"] == stats["hang"] == 0
+    assert stats["ok"] > 0 and stats["refused"] > 0
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="needs Node")
+def test_js_worker_tells_a_refusal_from_an_internal_error(tmp_path):
+    """An AnchorError is a refusal; the Node process dying is an internal error."""
+    js = fuzz_module("js_worker")
+    worker = js.JsWorker(60.0)
+    try:
+        bad = tmp_path / "bad.glb"
+        bad.write_bytes(b"glTF" + struct.pack("<II", 2, 12))
+        [(name, outcome, detail, codes)] = worker.run(str(bad), ["js_reader"])
+        assert (name, outcome, codes) == ("js_reader", "refused", ("GLB_FIRST_CHUNK_NOT_JSON",))
+        good = tmp_path / "good.glb"
+        good.write_bytes(next(d for s, d in fuzz_module("seeds").seeds() if s == ".glb"))
+        assert worker.run(str(good), ["js_reader"])[0][1] == "ok"
+        worker.proc.kill()   # the process gone: that input's outcome is internal
+        worker.proc.wait()
+        outcome = worker._ended()
+        assert outcome[0] == "internal" and "ended with status" in outcome[1]
+    finally:
+        worker.close()
+
+
+def test_web_mutations_are_deterministic_and_structure_aware():
+    seeds = web.web_seeds()
+    kinds = {k for k, _ in seeds}
+    assert kinds == {".spz", ".sog", ".ksplat", ".compressed.ply"}
+    assert any(d[:4] == b"NGSP" for k, d in seeds if k == ".spz")   # v4 beside gzip v2
+    pool = [(k, d) for k, d in seeds]
+    for kind, data in seeds:
+        a = [web.mutate_any(random.Random(i), kind, data, pool) for i in range(40)]
+        b = [web.mutate_any(random.Random(i), kind, data, pool) for i in range(40)]
+        assert a == b
+        assert sum(m != data for m in a) >= 30
+    # spz v4: table entries and header fields are reached
+    v4 = next(d for k, d in seeds if k == ".spz" and d[:4] == b"NGSP")
+    toc = struct.unpack_from("<I", v4, 16)[0]
+    changed = set()
+    for i in range(300):
+        m = web._mutate_spz_v4(random.Random(i), v4, pool)
+        if len(m) == len(v4):
+            changed |= {j for j in range(len(v4)) if m[j] != v4[j]}
+    assert changed & set(range(toc, toc + 16)) and changed & set(range(4, 20))
+    # sog: meta.json edited, members dropped or renamed, methods changed
+    sog = next(d for k, d in seeds if k == ".sog")
+    names = set()
+    methods = set()
+    for i in range(200):
+        try:
+            with zipfile.ZipFile(io.BytesIO(web._mutate_sog(random.Random(i), sog, pool))) as z:
+                names.add(tuple(sorted(z.namelist())))
+                methods |= {info.compress_type for info in z.infolist()}
+        except zipfile.BadZipFile:
+            pass
+    assert len(names) > 3 and {zipfile.ZIP_BZIP2, zipfile.ZIP_LZMA} <= methods
+
+
+def _compressed_ply_with_list_bound(path) -> None:
+    bounds = ["min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x",
+              "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z",
+              "min_r"]
+    head = ["ply", "format binary_little_endian 1.0", "element chunk 1"]
+    head += [f"property float {b}" for b in bounds[:-1]] + ["property list uint uint min_r"]
+    head += ["property float min_g", "property float min_b", "property float max_r",
+             "property float max_g", "property float max_b", "element vertex 2"]
+    head += [f"property uint {p}" for p in ("packed_position", "packed_rotation",
+                                             "packed_scale", "packed_color")]
+    body = struct.pack("<12f", *([0.0] * 12)) + struct.pack("<I", 0) + struct.pack("<5f", *[0.0] * 5)
+    body += bytes(32)
+    path.write_bytes(("\n".join(head) + "\nend_header\n").encode() + body)
+
+
+def test_found_by_fuzzing_are_refused_as_bad_input(tmp_path):
+    """Inputs of the long runs that were internal errors: a compressed PLY colour bound that is
+    a list property, a zip archive of a later zip version; and a WebP a little past Pillow's own
+    pixel limit is decoded without Pillow's warning reaching the user."""
+    from gsverse_format.errors import FormatError
+    from gsverse_format.io.splatformats import decode
+
+    cply = tmp_path / "list.compressed.ply"
+    _compressed_ply_with_list_bound(cply)
+    with pytest.raises(FormatError, match="'min_r' must be a number, not a list"):
+        decode("compressed-ply", cply)
+
+    sog = next(d for k, d in web.web_seeds() if k == ".sog")
+    buf = bytearray(sog)
+    central = buf.rfind(b"PK\x01\x02")
+    struct.pack_into("<H", buf, central + 6, 84)      # version needed to extract: 8.4
+    path = tmp_path / "v84.sog"
+    path.write_bytes(bytes(buf))
+    with pytest.raises(FormatError, match="broken zip archive"):
+        decode("sog", path)
+
+    from PIL import Image
+
+    from gsverse_format.io.splatformats.container import decode_webp
+
+    small = io.BytesIO()
+    Image.new("RGBA", (1, 1)).save(small, "WEBP", lossless=True)
+    webp = bytearray(small.getvalue())
+    assert webp[12:16] == b"VP8L" and webp[20] == 0x2F
+    bits = struct.unpack_from("<I", webp, 21)[0] & ~0x0FFFFFFF
+    struct.pack_into("<I", webp, 21, bits | 9999 | (8999 << 14))   # 10000 x 9000: 90 M pixels
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")   # Pillow warns above 89 M pixels
+        with pytest.raises(FormatError, match="declares 10000x9000 pixels"):
+            decode_webp(bytes(webp), "x.webp", "x.sog")
+
+
+def test_python_dash_m_fuzz_runs_the_harness(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "fuzz", "--runs", "3", "--kinds", "ksplat",
+                           "--quiet", "--crash-dir", str(tmp_path / "c")], cwd=ROOT,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("inputs: 3  internal errors: 0  hangs: 0")
+    bad = subprocess.run([sys.executable, "-m", "fuzz", "--kinds", "zip"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and "cply" in bad.stderr and "js" in bad.stderr
