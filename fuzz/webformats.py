@@ -215,8 +215,8 @@ def _mutate_spz_v4(rng: random.Random, data: bytes, pool: list) -> bytes:
     elif r == 1 and count and toc + 16 * count <= len(buf):   # a table entry
         pos = toc + 16 * rng.randrange(count) + rng.choice((0, 8))
         old = struct.unpack_from("<Q", buf, pos)[0]
-        struct.pack_into("<Q", buf, pos, rng.choice(INTERESTING_U64 + (old + 1, max(old - 1, 0),
-                                                                       len(buf), 2 * old)))
+        value = rng.choice(INTERESTING_U64 + (old + 1, max(old - 1, 0), len(buf), 2 * old))
+        struct.pack_into("<Q", buf, pos, value & (2 ** 64 - 1))
     elif r == 2 and count and toc + 16 * count <= len(buf):   # a stream of zstd zeros
         import zstandard
 
@@ -229,7 +229,7 @@ def _mutate_spz_v4(rng: random.Random, data: bytes, pool: list) -> bytes:
         return bytes(buf[:toc]) + bytes(table) + zeros + bytes(buf[start + first:])
     elif r == 3:   # extension records before the table
         records = _records(rng)
-        struct.pack_into("<I", buf, 16, toc + len(records))
+        struct.pack_into("<I", buf, 16, (toc + len(records)) & 0xFFFFFFFF)
         buf[14] |= 2
         return bytes(buf[:toc]) + records + bytes(buf[toc:])
     else:
