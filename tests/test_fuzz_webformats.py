@@ -117,7 +117,7 @@ def _compressed_ply_with_list_bound(path) -> None:
 
 def test_found_by_fuzzing_are_refused_as_bad_input(tmp_path):
     """Inputs of the long runs that were internal errors: a compressed PLY colour bound that is
-    a list property, a zip archive of a later zip version; and a WebP a little past Pillow's own
+    a list property, a zip archive of a later zip version, an encrypted member; and a WebP a little past Pillow's own
     pixel limit is decoded without Pillow's warning reaching the user."""
     from gsverse_format.errors import FormatError
     from gsverse_format.io.splatformats import decode
@@ -134,6 +134,12 @@ def test_found_by_fuzzing_are_refused_as_bad_input(tmp_path):
     path = tmp_path / "v84.sog"
     path.write_bytes(bytes(buf))
     with pytest.raises(FormatError, match="broken zip archive"):
+        decode("sog", path)
+    buf = bytearray(sog)
+    for at in (0, buf.find(b"PK\x01\x02") + 2):   # general purpose flags: encrypted
+        struct.pack_into("<H", buf, at + 6, 1)
+    path.write_bytes(bytes(buf))
+    with pytest.raises(FormatError, match="member 'meta.json' is encrypted"):
         decode("sog", path)
 
     from PIL import Image
