@@ -117,6 +117,31 @@ export const MAX_DATA_URI_BYTES = 2 ** 28;
  */
 export const MAX_GLTF_ARRAY_ITEMS = 100000;
 
+/**
+ * Accessor bytes all splat primitives read together (an accessor shared by several primitives
+ * counted once per use) may be at most this many times the buffers' declared bytes plus
+ * READ_AMPLIFICATION_SLACK: the Python reader's `MAX_READ_AMPLIFICATION` and
+ * `READ_AMPLIFICATION_SLACK` (readAnchoredGlb checks them before reading any primitive).
+ */
+export const MAX_READ_AMPLIFICATION = 4;
+export const READ_AMPLIFICATION_SLACK = 2 ** 26;
+
+/**
+ * The bytes an accessor declares (count x components x component size; 0 when malformed:
+ * its reading refuses it).
+ * @param {any} json
+ * @param {unknown} index
+ * @returns {number}
+ */
+export function declaredAccessorBytes(json, index) {
+    const accessors = Array.isArray(json.accessors) ? json.accessors : [];
+    const acc = isIndex(index) && index < accessors.length ? accessors[index] : null;
+    if (typeof acc !== 'object' || acc === null || !isIndex(acc.count)) return 0;
+    const comp = COMPONENT_TYPES[acc.componentType];
+    const n = Object.prototype.hasOwnProperty.call(MATRIX_COMPONENTS, acc.type) ? MATRIX_COMPONENTS[acc.type] : 0;
+    return comp ? acc.count * n * comp.size : 0;
+}
+
 /** Value of each base64 character code; -1 for ASCII whitespace (skipped), -2 otherwise. */
 const BASE64_VALUE = (() => {
     const table = new Int8Array(128).fill(-2);

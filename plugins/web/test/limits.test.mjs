@@ -119,3 +119,18 @@ test('arrays past MAX_GLTF_ARRAY_ITEMS are SIZE_LIMIT_EXCEEDED before any member
     p.json.meshes[1].primitives = new Array(MAX_GLTF_ARRAY_ITEMS + 1).fill(p.json.meshes[1].primitives[0]);
     refuses(() => readAnchoredGlb(p.glb(), { name: 'prims.glb' }), 'SIZE_LIMIT_EXCEEDED', /^prims\.glb: meshes\[1\] has 100001 primitives/);
 });
+
+test('splat primitives sharing one accessor past MAX_READ_AMPLIFICATION are SIZE_LIMIT_EXCEEDED before any is read', () => {
+    // 4,000 splat primitives sharing the accessors of one 20,000-splat primitive: about
+    // about 2 MB of buffer read 4,000 times over (8 GB), refused on the declared sizes
+    const N = 20000;
+    const b = anchoredBuilder({ ...TRIANGLE, face: new Array(N).fill(0), bary: new Array(2 * N).fill(0.25) });
+    const prim = b.json.meshes[0].primitives[0];
+    b.json.meshes[0].primitives = new Array(4000).fill(prim);
+    const glb = b.glb();
+    assert.ok(glb.byteLength < 2 ** 22);
+    refuses(() => readAnchoredGlb(glb, { name: 'shared.glb' }), 'SIZE_LIMIT_EXCEEDED', /^shared\.glb: the splat primitives up to meshes\[0\]\.primitives\[\d+\] would read \d+ bytes of accessors, more than 4 times the \d+ bytes/);
+    // within the limit: two primitives sharing them are read
+    b.json.meshes[0].primitives = [prim, prim];
+    assert.equal(readAnchoredGlb(b.glb()).anchored.length, 2);
+});
