@@ -58,6 +58,7 @@ import pathlib
 import random
 import re
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -508,8 +509,9 @@ def main(argv: list[str] | None = None) -> int:
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100000, help="inputs to run (default 100000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (builtin engine)")
-    parser.add_argument("--kinds", default=",".join(k.lstrip(".") for k in KINDS),
-                        help="kinds of input, comma-separated (default: all: "
+    parser.add_argument("--kinds", default=",".join(k.lstrip(".") for k in KINDS
+                                                    if k != JS_KIND or shutil.which("node")),
+                        help="kinds of input, comma-separated (default: all (js where Node runs): "
                              "glb,gltf,ply,usda,usdc,spz,sog,ksplat,cply,js; cply: compressed "
                              "PLY, js: GLB and glTF read by the web plugin in Node)")
     parser.add_argument("--usd", choices=("worker", "api"), default="worker",
