@@ -6,6 +6,7 @@ bad input."""
 from __future__ import annotations
 
 import io
+import json
 import random
 import shutil
 import struct
@@ -117,7 +118,8 @@ def _compressed_ply_with_list_bound(path) -> None:
 
 def test_found_by_fuzzing_are_refused_as_bad_input(tmp_path):
     """Inputs of the long runs that were internal errors: a compressed PLY colour bound that is
-    a list property, a zip archive of a later zip version, an encrypted member; and a WebP a little past Pillow's own
+    a list property, a zip archive of a later zip version, an encrypted member, a SOG number
+    that is an integer too large for a float; and a WebP a little past Pillow's own
     pixel limit is decoded without Pillow's warning reaching the user."""
     from gsverse_format.errors import FormatError
     from gsverse_format.io.splatformats import decode
@@ -141,6 +143,24 @@ def test_found_by_fuzzing_are_refused_as_bad_input(tmp_path):
     path.write_bytes(bytes(buf))
     with pytest.raises(FormatError, match="member 'meta.json' is encrypted"):
         decode("sog", path)
+
+    v1 = [d for k, d in web.web_seeds() if k == ".sog"][1]   # version 1, SH: shN.mins/maxs
+    for huge in (2 ** 64, 10 ** 400):
+        out = io.BytesIO()
+        with zipfile.ZipFile(io.BytesIO(v1)) as src, zipfile.ZipFile(out, "w") as dst:
+            for name in src.namelist():
+                body = src.read(name)
+                if name == "meta.json":
+                    meta = json.loads(body)
+                    meta["shN"]["maxs"] = huge
+                    body = json.dumps(meta).encode()
+                dst.writestr(name, body)
+        path.write_bytes(out.getvalue())
+        if huge < 2 ** 1024:   # a finite float: read (numpy's isfinite refused the integer)
+            decode("sog", path)
+            continue
+        with pytest.raises(FormatError, match="shN.maxs is not a finite number"):
+            decode("sog", path)
 
     from PIL import Image
 
