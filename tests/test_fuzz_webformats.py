@@ -187,3 +187,31 @@ def test_python_dash_m_fuzz_runs_the_harness(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "fuzz", "--kinds", "zip"], cwd=ROOT,
                          capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and "cply" in bad.stderr and "js" in bad.stderr
+
+
+#: A 578-byte .spz v4 of the long run (seed 12) whose zstd frame made zstandard raise MemoryError.
+SPZ_V4_MEMORYERROR = bytes.fromhex(
+    "4e4753500400000014000000000c02052c0000000000000000000000000000000300bead0400000001000000"
+    "bd00000000000000b4000000000000001d00000000000000140000000000000045000000000000003c000000"
+    "0000000045000000000000003c000000000000005900000000000000500000000000000028b52ffd20b4a105"
+    "00a54dca182530bb1d6d132cded6237b2ed91e3f721fcb1971174494d6493c9d5c3460be31201e69fedaa0ee"
+    "e8b9997f5c7c2999fdafe593253cd654af4dfad71427a0aeb3fee9232f8af2211f9ee491c5b10becb5563bfc"
+    "1e6f93427ecbc8fe2955e5cd8e46dc8ed4b7c2764d2a5a4d767706f85d8690024ad6bda3401be9c8cbccc935"
+    "f6cd1f61226ae15338ae1a34004d33ba0d246ac04c81b1baf23e3bf9eef5f79f2b4934af87f5520b69b94b0d"
+    "982e85bb5528b52ffd2014a10000b672a872637acd7466fcb60e0e8ff18463b0e4b228b52ffd203ce10100ba"
+    "29703474f064ac68f700f5b02b3dc666f45bdeaa2ccaedcd2b5157410e4dee4af2b34f430a073447de636c0e"
+    "806c957ba684d6431fb5ead7424d0928b52ffdd15e46070a11bffca320000080ffe15d024c5848f23d1fa6f7"
+    "361d7f618d1532e70e20e2a6668de7f47e8467e546d53ec8e2a1257bdb256c9b3e4fbb498146ef7030cbf953"
+    "7252dccead28b52ffd2050810200d764b6a32fbb09adeae109c4a997203975352b878b145c8a42d884cf4cfd"
+    "a72d8e1d5dd92589082d852a7122873ee805add58942167a385286195c679f9c6994e45b8ab1098012070961"
+    "f37de436ddfd")
+
+
+def test_spz_v4_corrupt_zstd_frame_is_bad_input(tmp_path):
+    from gsverse_format.errors import FormatError
+    from gsverse_format.io.splatformats import decode
+
+    path = tmp_path / "frame.spz"
+    path.write_bytes(SPZ_V4_MEMORYERROR)
+    with pytest.raises(FormatError, match="broken zstd stream"):
+        decode("spz", path)
