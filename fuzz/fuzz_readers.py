@@ -38,7 +38,12 @@ A numpy ``RuntimeWarning`` (overflow, invalid value) raised while a target runs 
 target and listed: the command-line tools would print it. Inputs that reach a new outcome
 join the corpus (a crude feedback loop).
 
-``python -m fuzz.fuzz_readers --runs 100000`` is the long run (``--kinds`` restricts it to some
+The web splat formats (``.spz``, ``.sog``, ``.ksplat``, compressed PLY) and the web plugin's JS
+reader have structure-aware targets of their own (:mod:`fuzz.webformats`, :mod:`fuzz.js_worker`:
+the JS reader in one long-lived Node process, an exception other than its ``AnchorError`` an
+internal error).
+
+``python -m fuzz --runs 100000`` (or ``python -m fuzz.fuzz_readers``) is the long run (``--kinds`` restricts it to some
 kinds of file); the test suite runs a few thousand inputs. ``--engine atheris`` uses
 coverage-guided libFuzzer mutation instead, when the ``atheris`` package is installed. Exit
 status 1 when any input failed; failing inputs are kept in ``--crash-dir``.
@@ -53,6 +58,7 @@ import pathlib
 import random
 import re
 import select
+import shutil
 import signal
 import subprocess
 import sys
@@ -65,13 +71,16 @@ from typing import Any, Callable
 
 from fuzz.mutations import mutate
 from fuzz.seeds import seeds
+from fuzz.webformats import JS_KIND, WEB_KINDS, mutate_any, web_seeds, web_targets
 
 __all__ = ["seeds", "mutate", "Fuzzer", "UsdWorker", "USD_WORKER_CODE", "OUTCOMES", "main"]
 
 #: The outcomes of running one target on one input; the last two are failures.
 OUTCOMES = ("ok", "refused", "internal", "hang")
 #: Kinds of input, by file name suffix.
-KINDS = (".glb", ".gltf", ".ply", ".usda", ".usdc")
+KINDS = (".glb", ".gltf", ".ply", ".usda", ".usdc") + tuple(WEB_KINDS)
+#: Short names of kinds on the command line.
+KIND_NAMES = {"cply": ".compressed.ply", "js": JS_KIND}
 #: The program of the USD worker child (``python -c USD_WORKER_CODE``).
 USD_WORKER_CODE = "from fuzz.usd_worker import main; main()"
 #: Marks the targets run by the USD worker in :func:`make_targets`.
@@ -113,7 +122,8 @@ def make_targets(usd: str = "worker") -> dict[str, list[tuple[str, Any]]]:
                    if usd == "worker" else [("read_usd", read_usd), ("validate_usd", validate)])
     return {".glb": gltf, ".gltf": gltf, ".usda": usd_targets, ".usdc": usd_targets,
             ".ply": [("read_splat_ply", read_splat_ply), ("read_ply_elements", read_ply_elements),
-                     ("read_ply_mesh", read_ply_mesh), ("read_mesh", read_mesh)]}
+                     ("read_ply_mesh", read_ply_mesh), ("read_mesh", read_mesh)],
+            **web_targets()}
 
 
 def classify_report(report: Any) -> tuple[str, str]:
@@ -257,6 +267,7 @@ class Fuzzer:
     signatures: set = field(default_factory=set)
     corpus_size: int = 0
     usd_worker: UsdWorker | None = None
+    js_worker: UsdWorker | None = None
     interrupted: bool = False
     warned: dict[str, list] = field(default_factory=dict)
 
@@ -267,7 +278,17 @@ class Fuzzer:
         with open(path, "wb") as handle:
             handle.write(data)
         results = []
-        worker = [name for name, fn in self.targets[suffix] if fn is IN_USD_WORKER]
+        if suffix == JS_KIND:  # the JS reader, in its Node process (fuzz.js_worker)
+            if self.js_worker is None:
+                from fuzz.js_worker import JsWorker
+
+                self.js_worker = JsWorker(self.timeout)
+            start = time.perf_counter()
+            results += [(n, o, d, (n, o) + c if c else (n, o, _shape(d)),
+                         time.perf_counter() - start)
+                        for n, o, d, c in self.js_worker.run(path, ["js_reader"])]
+        worker = [name for name, fn in self.targets[suffix]
+                  if fn is IN_USD_WORKER and suffix != JS_KIND]
         if worker:
             if self.usd_worker is None:
                 self.usd_worker = UsdWorker(self.timeout)
@@ -337,8 +358,9 @@ class Fuzzer:
         return name, outcome, detail, sig, time.perf_counter() - start
 
     def close(self) -> None:
-        if self.usd_worker is not None:
-            self.usd_worker.close()
+        for worker in (self.usd_worker, self.js_worker):
+            if worker is not None:
+                worker.close()
 
     def _fail(self, target: str, suffix: str, kind: str, detail: str, data: bytes) -> None:
         saved = None
@@ -391,7 +413,8 @@ def _limit_memory(limit: int | None) -> None:
 
 
 #: Share of the inputs of each kind when all kinds run.
-WEIGHTS = {".glb": 0.3, ".gltf": 0.15, ".ply": 0.3, ".usda": 0.15, ".usdc": 0.1}
+WEIGHTS = {".glb": 0.3, ".gltf": 0.15, ".ply": 0.3, ".usda": 0.15, ".usdc": 0.1,
+           ".spz": 0.15, ".sog": 0.15, ".ksplat": 0.1, ".compressed.ply": 0.1, JS_KIND: 0.2}
 
 
 def _interrupt(signum: int, frame: object) -> None:
@@ -403,7 +426,10 @@ def run_builtin(runs: int, seed: int, timeout: float, crash_dir: str | None,
                 usd: str = "worker") -> Fuzzer:
     """The seeded mutation fuzzer: ``runs`` inputs of ``kinds`` (the seeds themselves first)."""
     rng = random.Random(seed)
-    initial = [(s, d) for s, d in seeds() if s in kinds]
+    base = seeds()
+    web = web_seeds() if set(kinds) & set(WEB_KINDS) - {JS_KIND} else []
+    js = [(JS_KIND, d) for s, d in base if s in (".glb", ".gltf")]
+    initial = [(s, d) for s, d in base + web + js if s in kinds]
     corpus: dict[str, list[bytes]] = {}
     for suffix, data in initial:
         corpus.setdefault(suffix, []).append(data)
@@ -422,7 +448,7 @@ def run_builtin(runs: int, seed: int, timeout: float, crash_dir: str | None,
                 data = rng.choice(pool[:len(pool) if rng.random() < 0.5 else 8])
                 flat = [(s, d) for s in present for d in corpus[s][:8]]
                 for _ in range(rng.choice((1, 1, 1, 2, 3))):
-                    data = mutate(rng, suffix, data, flat)
+                    data = mutate_any(rng, suffix, data, flat)
                 if len(data) > MAX_INPUT:
                     data = data[:MAX_INPUT]
                 try:
@@ -479,13 +505,15 @@ def run_atheris(runs: int, timeout: float, crash_dir: str | None) -> int:  # pra
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fuzz.fuzz_readers",
+    parser = argparse.ArgumentParser(prog="python -m fuzz",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=100000, help="inputs to run (default 100000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (builtin engine)")
-    parser.add_argument("--kinds", default=",".join(k.lstrip(".") for k in KINDS),
-                        help="kinds of input, comma-separated (default: all: "
-                             "glb,gltf,ply,usda,usdc)")
+    parser.add_argument("--kinds", default=",".join(k.lstrip(".") for k in KINDS
+                                                    if k != JS_KIND or shutil.which("node")),
+                        help="kinds of input, comma-separated (default: all (js where Node runs): "
+                             "glb,gltf,ply,usda,usdc,spz,sog,ksplat,cply,js; cply: compressed "
+                             "PLY, js: GLB and glTF read by the web plugin in Node)")
     parser.add_argument("--usd", choices=("worker", "api"), default="worker",
                         help="run the USD targets in one long-lived child (default) or through "
                              "the public API, one child process per input (slow)")
@@ -500,11 +528,12 @@ def main(argv: list[str] | None = None) -> int:
                              " 0: none)")
     parser.add_argument("--quiet", action="store_true", help="no progress lines")
     args = parser.parse_args(argv)
-    kinds = tuple("." + k.strip().lstrip(".") for k in args.kinds.split(",") if k.strip())
+    kinds = tuple(KIND_NAMES.get(k.strip(), "." + k.strip().lstrip("."))
+                  for k in args.kinds.split(",") if k.strip())
     unknown = [k for k in kinds if k not in KINDS]
     if unknown or not kinds:
         parser.error(f"unknown kind(s) {', '.join(unknown) or '(none)'}; use "
-                     f"{','.join(k.lstrip('.') for k in KINDS)}")
+                     "glb,gltf,ply,usda,usdc,spz,sog,ksplat,cply,js")
     _limit_memory(args.memory_limit)
     signal.signal(signal.SIGTERM, _interrupt)
     crash_dir = args.crash_dir or tempfile.mkdtemp(prefix="gsverse-fuzz-crashes-")

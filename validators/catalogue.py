@@ -102,12 +102,17 @@ truncation, chunk and header edits, splices; for glTF, structure-aware edits of 
 values of another type, counts, references, offsets, enumerations, extension objects, deleted
 and duplicated keys; for USD text, tokens, array lengths, composition arcs and value clips)
 and runs every reader and the validator on each input, the USD ones in a child process that
-the USD library may crash:
+the USD library may crash. The web splat formats have structure-aware targets of their own
+(`.spz` v2 and v4: header fields, stream sizes, table entries, extension records; `.sog`: zip
+members and methods, `meta.json` fields, WebP headers; `.ksplat` and compressed PLY: header
+fields and chunk counts), and so has the web plugin's JS reader (mutated GLB and glTF files
+read in one Node process; its `AnchorError` is a refusal, any other exception a failure):
 
 ```
-python -m fuzz.fuzz_readers --runs 100000 --kinds glb,gltf   # a long run, one kind of input
-python -m fuzz.fuzz_readers --runs 2000                      # a short run of every kind
-python -m fuzz.fuzz_readers --engine atheris                 # coverage-guided (atheris)
+python -m fuzz --runs 100000 --kinds glb,gltf   # a long run, one kind of input
+python -m fuzz --runs 100000 --kinds spz        # or sog, ksplat, cply (compressed PLY), js
+python -m fuzz --runs 2000                      # a short run of every kind
+python -m fuzz --engine atheris                 # coverage-guided (atheris)
 ```
 
 Each run of a reader ends as `ok`, `refused` (the toolkit's one-line error, a validator report

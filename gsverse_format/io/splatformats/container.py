@@ -29,8 +29,8 @@ from __future__ import annotations
 import io
 import json
 import os
-import zipfile
 import warnings
+import zipfile
 import zlib
 from dataclasses import dataclass, field
 from typing import Any
@@ -118,13 +118,15 @@ class Bundle:
                 raise FormatError(f"member {name!r} is compressed with zip method "
                                   f"{info.compress_type}; SOG members are stored or deflated",
                                   self.path)
+            if info.flag_bits & 0x1:
+                raise FormatError(f"member {name!r} is encrypted", self.path)
             if info.file_size > inflation_limit(info.compress_size):
                 raise FormatError(f"member {name!r} declares {info.file_size} bytes, more "
                                   f"than {_limit_text(info.compress_size)}", self.path)
             try:
                 return self.zip.read(info)
             except (zipfile.BadZipFile, zlib.error, NotImplementedError, OSError, EOFError,
-                    ValueError) as exc:
+                    ValueError, RuntimeError) as exc:   # RuntimeError: encryption flags
                 raise FormatError(f"cannot read member {name!r} ({exc})", self.path) from None
         assert self.folder is not None
         member = os.path.join(self.folder, name)
@@ -150,7 +152,8 @@ def open_bundle(path: str) -> tuple[Bundle, dict[str, Any]]:
     if data[:4] == b"PK\x03\x04":
         try:
             archive = zipfile.ZipFile(io.BytesIO(data))
-        except (zipfile.BadZipFile, UnicodeDecodeError, ValueError, EOFError) as exc:
+        except (zipfile.BadZipFile, UnicodeDecodeError, ValueError, EOFError,
+                NotImplementedError, OSError) as exc:   # NotImplementedError: zip version
             raise FormatError(f"broken zip archive ({exc})", path) from None
         bundle = Bundle(path, archive, None,
                         {i.filename: i.compress_size for i in archive.infolist()})

@@ -77,10 +77,14 @@ class _Reader:
 
     def number(self, *keys: str) -> float:
         value = self.field(*keys)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not np.isfinite(value):
+        try:   # float() of an integer past 1e308 overflows (numpy refused a 2**64 one)
+            number = float(value) if isinstance(value, (int, float)) \
+                and not isinstance(value, bool) else float("nan")
+        except OverflowError:
+            number = float("inf")
+        if not np.isfinite(number):
             raise FormatError(f"meta.json {'.'.join(keys)} is not a finite number", self.path)
-        return float(value)
+        return number
 
     def image(self, group: str, index: int, count: int) -> np.ndarray:
         files = self.field(group, "files")

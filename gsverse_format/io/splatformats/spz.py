@@ -150,6 +150,10 @@ def _v4_streams(raw: bytes, path: str) -> tuple[dict[str, int], dict[str, bytes]
                 raw[offset:offset + packed], max_output_size=size)
         except zstandard.ZstdError as exc:
             raise FormatError(f"broken zstd stream of {name} ({exc})", path) from None
+        except MemoryError:   # zstandard's answer to some corrupt frame headers; the size
+            # it may inflate to is bounded above, so this is the frame, not the machine
+            raise FormatError(f"broken zstd stream of {name} (corrupt frame header)",
+                              path) from None
         if len(out[name]) != size:
             raise FormatError(f"the {name} stream inflates to {len(out[name])} bytes, not "
                               f"{size}", path)

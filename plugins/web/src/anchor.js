@@ -7,7 +7,7 @@
 
 import {
     BYTE, COMPONENT_TYPES, FLOAT, GltfError, SHORT, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT,
-    dequantize, globalMatrices, isIndex, parseGltf,
+    READ_AMPLIFICATION_SLACK, MAX_READ_AMPLIFICATION, declaredAccessorBytes, dequantize, globalMatrices, isIndex, parseGltf,
 } from './glb.js';
 import { deriveLocalAnchors, expandFaceCounts } from './compact.js';
 import { EPS_DEGENERATE } from './rest.js';
@@ -452,6 +452,38 @@ function readAnchored(doc, m, p, matrices) {
 }
 
 /**
+ * SIZE_LIMIT_EXCEEDED when reading every splat primitive would copy far more bytes than the
+ * buffers hold (primitives sharing accessors, legal glTF, would make a small file expand into
+ * gigabytes): the Python reader's rule, on the declared sizes, before anything is read.
+ * @param {any} json
+ */
+function checkReadAmplification(json) {
+    const meshes = Array.isArray(json.meshes) ? json.meshes : [];
+    const buffers = Array.isArray(json.buffers) ? json.buffers : [];
+    let held = 0;
+    for (const b of buffers) if (b && isIndex(b.byteLength)) held += b.byteLength;
+    const allowed = MAX_READ_AMPLIFICATION * held + READ_AMPLIFICATION_SLACK;
+    let total = 0;
+    meshes.forEach((/** @type {any} */ mesh, /** @type {number} */ m) => {
+        const prims = mesh && Array.isArray(mesh.primitives) ? mesh.primitives : [];
+        prims.forEach((/** @type {any} */ prim, /** @type {number} */ p) => {
+            const khr = prim && prim.extensions && prim.extensions[KHR];
+            if (typeof khr !== 'object' || khr === null) return;
+            const attrs = typeof prim.attributes === 'object' && prim.attributes !== null ? prim.attributes : {};
+            const refs = Object.values(attrs);
+            const anchor = khr.extensions && khr.extensions[EXTENSION];
+            if (typeof anchor === 'object' && anchor !== null) {
+                for (const [k, v] of Object.entries(anchor)) if (k !== 'mesh' && k !== 'primitive') refs.push(v);
+            }
+            for (const r of refs) total += declaredAccessorBytes(json, r);
+            if (total > allowed) {
+                throw new GltfError('SIZE_LIMIT_EXCEEDED', `the splat primitives up to meshes[${m}].primitives[${p}] would read ${total} bytes of accessors, more than ${MAX_READ_AMPLIFICATION} times the ${held} bytes of the buffers (accessors shared by many primitives)`);
+            }
+        });
+    });
+}
+
+/**
  * Read every anchored splat primitive of a GLB (or .gltf JSON with data: URIs only).
  * Throws AnchorError (message naming the file and the cause, `.code` the gsverse-validate
  * code) when the asset must be refused.
@@ -464,6 +496,7 @@ export function readAnchoredGlb(bytes, options = {}) {
     try {
         const doc = parseGltf(bytes);
         const json = doc.json;
+        checkReadAmplification(json);
         const meshes = Array.isArray(json.meshes) ? json.meshes : [];
         /** @type {AnchoredPrimitive[]} */
         const anchored = [];

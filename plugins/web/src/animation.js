@@ -225,7 +225,7 @@ export class AnchorAnimation {
         for (const seed of seeds) {
             chain.length = 0;
             for (let j = seed; j >= 0 && slotOf[j] < 0; j = parent[j]) {
-                if (chain.length >= nodes.length) throw fail('GLTF_SCHEMA_VIOLATION', 'the node hierarchy has a cycle');
+                if (chain.length >= nodes.length) throw fail('NODE_GRAPH_INVALID', `the node hierarchy has a cycle through node ${seed}`);
                 chain.push(j);
             }
             for (let k = chain.length - 1; k >= 0; --k) {

@@ -105,33 +105,88 @@ export function parseGlb(data) {
 }
 
 /**
- * Decode a base64 string (no external dependency; works in Node and browsers).
+ * Decoded bytes one base64 `data:` URI may hold (256 MiB), the Python reader's
+ * `gsverse_format.limits.MAX_DATA_URI_BYTES`: checked on the length of the text before
+ * anything is decoded. GLB binary chunks suit larger buffers.
+ */
+export const MAX_DATA_URI_BYTES = 2 ** 28;
+
+/**
+ * Elements of one top-level glTF array (`accessors`, `nodes`, ...) and primitives of one mesh,
+ * the Python reader's `MAX_GLTF_ARRAY_ITEMS`: checked right after the JSON is parsed.
+ */
+export const MAX_GLTF_ARRAY_ITEMS = 100000;
+
+/**
+ * Accessor bytes all splat primitives read together (an accessor shared by several primitives
+ * counted once per use) may be at most this many times the buffers' declared bytes plus
+ * READ_AMPLIFICATION_SLACK: the Python reader's `MAX_READ_AMPLIFICATION` and
+ * `READ_AMPLIFICATION_SLACK` (readAnchoredGlb checks them before reading any primitive).
+ */
+export const MAX_READ_AMPLIFICATION = 4;
+export const READ_AMPLIFICATION_SLACK = 2 ** 26;
+
+/**
+ * The bytes an accessor declares (count x components x component size; 0 when malformed:
+ * its reading refuses it).
+ * @param {any} json
+ * @param {unknown} index
+ * @returns {number}
+ */
+export function declaredAccessorBytes(json, index) {
+    const accessors = Array.isArray(json.accessors) ? json.accessors : [];
+    const acc = isIndex(index) && index < accessors.length ? accessors[index] : null;
+    if (typeof acc !== 'object' || acc === null || !isIndex(acc.count)) return 0;
+    const comp = COMPONENT_TYPES[acc.componentType];
+    const n = Object.prototype.hasOwnProperty.call(MATRIX_COMPONENTS, acc.type) ? MATRIX_COMPONENTS[acc.type] : 0;
+    return comp ? acc.count * n * comp.size : 0;
+}
+
+/** Value of each base64 character code; -1 for ASCII whitespace (skipped), -2 otherwise. */
+const BASE64_VALUE = (() => {
+    const table = new Int8Array(128).fill(-2);
+    const alphabet = 'ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/';
+    for (let i = 0; i < 64; ++i) table[alphabet.charCodeAt(i)] = i;
+    for (const c of ' \t\n\r\f') table[c.charCodeAt(0)] = -1;
+    return table;
+})();
+
+/**
+ * Decode base64 text from `start` (no external dependency; works in Node and browsers): one
+ * pass over the characters into one output array, no copy of the text.
  * @param {string} text
+ * @param {number} [start]
  * @returns {Uint8Array|null} null when the text is not valid base64
  */
-function decodeBase64(text) {
-    const clean = text.replace(/[\s]/g, '');
-    if (!/^[A-Za-z0-9+/]*={0,2}$/.test(clean) || clean.length % 4 === 1) return null;
-    const alphabet = 'ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/';
-    const body = clean.replace(/=+$/, '');
-    const out = new Uint8Array(Math.floor((body.length * 3) / 4));
+function decodeBase64(text, start = 0) {
+    const out = new Uint8Array(Math.floor(((text.length - start) * 3) / 4));
     let acc = 0;
     let bits = 0;
     let o = 0;
-    for (let i = 0; i < body.length; ++i) {
-        acc = (acc << 6) | alphabet.indexOf(body[i]);
+    let chars = 0;
+    let pad = 0;
+    for (let i = start; i < text.length; ++i) {
+        const c = text.charCodeAt(i);
+        const v = c < 128 ? BASE64_VALUE[c] : -2;
+        if (v === -1) continue;
+        if (c === 0x3d) { ++pad; ++chars; continue; }       // '=': only at the end
+        if (v < 0 || pad) return null;
+        ++chars;
+        acc = ((acc << 6) | v) & 0xffffff;
         bits += 6;
         if (bits >= 8) {
             bits -= 8;
             out[o++] = (acc >> bits) & 0xff;
         }
     }
+    if (pad > 2 || chars % 4 === 1 || (pad && chars % 4)) return null;
     return out.subarray(0, o);
 }
 
 /**
  * The bytes of a `data:` URI. Any other URI (relative paths included) is refused: this
- * reader fetches nothing.
+ * reader fetches nothing. The decoded size is checked against MAX_DATA_URI_BYTES on the
+ * length of the text, before anything is decoded.
  * @param {string} uri
  * @param {string} what
  * @returns {Uint8Array}
@@ -141,9 +196,13 @@ function dataUri(uri, what) {
         throw new GltfError('URI_SCHEME_REJECTED', `${what}: URI ${JSON.stringify(uri.slice(0, 60))} is not a data: URI; only data in the GLB binary chunk or in base64 data: URIs is read`);
     }
     const comma = uri.indexOf(',');
-    if (comma < 0) throw new GltfError('URI_INVALID', `${what}: malformed data: URI (no comma)`);
+    if (comma < 0 || comma > 1024) throw new GltfError('URI_INVALID', `${what}: malformed data: URI (no comma)`);
     if (!/;base64$/i.test(uri.slice(0, comma))) throw new GltfError('URI_INVALID', `${what}: only base64 data: URIs are supported`);
-    const bytes = decodeBase64(uri.slice(comma + 1));
+    const size = Math.floor(((uri.length - comma - 1) * 3) / 4);
+    if (size > MAX_DATA_URI_BYTES) {
+        throw new GltfError('DATA_URI_TOO_LARGE', `${what}: data: URI holds about ${size} bytes, more than the limit of ${MAX_DATA_URI_BYTES} bytes per data: URI`);
+    }
+    const bytes = decodeBase64(uri, comma + 1);
     if (!bytes) throw new GltfError('URI_INVALID', `${what}: data: URI is not valid base64`);
     return bytes;
 }
@@ -360,6 +419,25 @@ export function dequantize(raw) {
 }
 
 /**
+ * Array lengths against MAX_GLTF_ARRAY_ITEMS (SIZE_LIMIT_EXCEEDED), before any member is read.
+ * @param {any} json
+ */
+function checkCounts(json) {
+    for (const key of Object.keys(json)) {
+        const value = json[key];
+        if (Array.isArray(value) && value.length > MAX_GLTF_ARRAY_ITEMS) {
+            throw new GltfError('SIZE_LIMIT_EXCEEDED', `the document has ${value.length} ${key}, more than the limit of ${MAX_GLTF_ARRAY_ITEMS}`);
+        }
+    }
+    (Array.isArray(json.meshes) ? json.meshes : []).forEach((/** @type {any} */ mesh, /** @type {number} */ m) => {
+        const prims = mesh && mesh.primitives;
+        if (Array.isArray(prims) && prims.length > MAX_GLTF_ARRAY_ITEMS) {
+            throw new GltfError('SIZE_LIMIT_EXCEEDED', `meshes[${m}] has ${prims.length} primitives, more than the limit of ${MAX_GLTF_ARRAY_ITEMS}`);
+        }
+    });
+}
+
+/**
  * Parse a .glb container or a .gltf JSON document (buffers as base64 data: URIs).
  * @param {Uint8Array|ArrayBuffer} input
  * @returns {GltfDocument}
@@ -393,6 +471,7 @@ export function parseGltf(input) {
     for (const key of ['accessors', 'bufferViews', 'buffers', 'meshes', 'nodes']) {
         if (json[key] !== undefined && !Array.isArray(json[key])) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${key} must be an array`);
     }
+    checkCounts(json);
     /** @type {Uint8Array[]} */
     const buffers = [];
     const list = json.buffers || [];
@@ -463,7 +542,7 @@ export function mat4Multiply(a, b) {
 
 /**
  * The parent of every node (−1 for a root), from `children`. A child index out of range is
- * UNRESOLVED_REFERENCE, a node with two parents GLTF_SCHEMA_VIOLATION.
+ * UNRESOLVED_REFERENCE, a node with two parents NODE_GRAPH_INVALID (the validator's code).
  * @param {any} json
  * @returns {Int32Array}
  */
@@ -473,7 +552,7 @@ export function nodeParents(json) {
     nodes.forEach((/** @type {any} */ node, /** @type {number} */ i) => {
         for (const c of (node && Array.isArray(node.children)) ? node.children : []) {
             if (!isIndex(c) || c >= nodes.length) throw new GltfError('UNRESOLVED_REFERENCE', `nodes[${i}].children: node ${JSON.stringify(c)} out of range`);
-            if (parent[c] !== -1) throw new GltfError('GLTF_SCHEMA_VIOLATION', `node ${c} has more than one parent`);
+            if (parent[c] !== -1) throw new GltfError('NODE_GRAPH_INVALID', `node ${c} has more than one parent`);
             parent[c] = i;
         }
     });
@@ -482,8 +561,8 @@ export function nodeParents(json) {
 
 /**
  * The global matrix of every node (column-major), parents from `children`.
- * A node in a cycle or with two parents is reported as GLTF_SCHEMA_VIOLATION.
- * Iterative: any depth of hierarchy.
+ * A node in a cycle or with two parents is reported as NODE_GRAPH_INVALID.
+ * Iterative (no recursion): a hierarchy of any depth, each node's matrix computed once.
  * @param {any} json
  * @returns {Float64Array[]}
  */
@@ -498,7 +577,7 @@ export function globalMatrices(json) {
         // walk up to a solved node or a root, then solve the chain from the top down
         chain.length = 0;
         for (let j = i; j >= 0 && !out[j]; j = parent[j]) {
-            if (chain.length >= nodes.length) throw new GltfError('GLTF_SCHEMA_VIOLATION', 'the node hierarchy has a cycle');
+            if (chain.length >= nodes.length) throw new GltfError('NODE_GRAPH_INVALID', `the node hierarchy has a cycle through node ${i}`);
             chain.push(j);
         }
         for (let k = chain.length - 1; k >= 0; --k) {

@@ -2,7 +2,7 @@
 // CPU remap. The PlayCanvas GPU plugin is the separate entry point '@gsverse/web/playcanvas'.
 
 export { AnchorError, readAnchoredGlb, ANCHOR_ACCESSORS, EXTENSION, KHR } from './anchor.js';
-export { GltfError, parseGltf, dequantize, globalMatrices } from './glb.js';
+export { GltfError, parseGltf, dequantize, globalMatrices, MAX_DATA_URI_BYTES, MAX_GLTF_ARRAY_ITEMS, MAX_READ_AMPLIFICATION, READ_AMPLIFICATION_SLACK } from './glb.js';
 export { computeRest, triangleFrame, perp, EPS_DEGENERATE, GAMES_EPS } from './rest.js';
 export { expandFaceCounts, deriveLocalAnchors } from './compact.js';
 export { remapCpu, remapCpuRotationScale, remapMeansInto, localFaces, gamesFaces, gamesFrame } from './remap-cpu.js';

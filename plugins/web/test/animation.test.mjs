@@ -558,5 +558,5 @@ test('refused: a cycle in the node hierarchy above a joint', () => {
     const prim = readAnchoredGlb(bytes).anchored[0];
     const doc = parseGltf(bytes);
     doc.json.nodes[3].children = [2];   // A → B → A
-    assert.throws(() => readAnchorAnimation(doc, prim, { name: 'case.glb' }), (/** @type {any} */ err) => err instanceof AnchorError && err.code === 'GLTF_SCHEMA_VIOLATION' && /cycle/.test(err.message));
+    assert.throws(() => readAnchorAnimation(doc, prim, { name: 'case.glb' }), (/** @type {any} */ err) => err instanceof AnchorError && err.code === 'NODE_GRAPH_INVALID' && /cycle/.test(err.message));
 });
