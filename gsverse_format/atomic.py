@@ -90,22 +90,22 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def sweep_stale(folder: str | os.PathLike[str], *, min_age: float = STALE_AFTER_S) -> list[str]:
-    """Remove the temporaries in ``folder`` left by dead processes of this machine (their
-    process id no longer exists) that have not changed for ``min_age`` seconds; returns their
-    paths. Anything else (other names, other machines' or live processes' temporaries) stays."""
+def _remove_temporaries(folder: str | os.PathLike[str],
+                        pick: Callable[[os.DirEntry[str], int], bool]) -> list[str]:
+    """Remove the temporaries in ``folder`` of this machine for which ``pick(entry, pid)``
+    holds (``pid``: the process that made it); returns their paths."""
     removed: list[str] = []
-    host, now = _host(), time.time()
+    host = _host()
     try:
         entries = list(os.scandir(folder))
     except OSError:
         return removed
     for entry in entries:
         m = _NAME.match(entry.name)
-        if m is None or m["host"] != host or _alive(int(m["pid"])):
+        if m is None or m["host"] != host:
             continue
         try:
-            if now - entry.stat(follow_symlinks=False).st_mtime < min_age:
+            if not pick(entry, int(m["pid"])):
                 continue
             if entry.is_dir(follow_symlinks=False):
                 shutil.rmtree(entry.path)
@@ -117,30 +117,21 @@ def sweep_stale(folder: str | os.PathLike[str], *, min_age: float = STALE_AFTER_
     return removed
 
 
+def sweep_stale(folder: str | os.PathLike[str], *, min_age: float = STALE_AFTER_S) -> list[str]:
+    """Remove the temporaries in ``folder`` left by dead processes of this machine (their
+    process id no longer exists) that have not changed for ``min_age`` seconds; returns their
+    paths. Anything else (other names, other machines' or live processes' temporaries) stays."""
+    now = time.time()
+    return _remove_temporaries(folder, lambda entry, pid: not _alive(pid) and now - entry.stat(
+        follow_symlinks=False).st_mtime >= min_age)
+
+
 def sweep_dead(folder: str | os.PathLike[str], pid: int) -> list[str]:
     """Remove the temporaries in ``folder`` of process ``pid`` of this machine, known dead
     (a batch's worker killed while writing): whatever their age; returns their paths."""
     if _alive(pid):
         return []
-    removed: list[str] = []
-    host = _host()
-    try:
-        entries = list(os.scandir(folder))
-    except OSError:
-        return removed
-    for entry in entries:
-        m = _NAME.match(entry.name)
-        if m is None or m["host"] != host or int(m["pid"]) != pid:
-            continue
-        try:
-            if entry.is_dir(follow_symlinks=False):
-                shutil.rmtree(entry.path)
-            else:
-                os.unlink(entry.path)
-        except OSError:
-            continue
-        removed.append(entry.path)
-    return removed
+    return _remove_temporaries(folder, lambda entry, owner: owner == pid)
 
 
 def _sweep_once(folder: str) -> None:

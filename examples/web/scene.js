@@ -12,7 +12,7 @@
 // its ground box replaces the demo's own ground. An asset without records is all soft bodies.
 
 import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
-import { readPhysics } from '@gsverse/web';
+import { invertInto, readPhysics } from '@gsverse/web';
 import { SoftBodyMesh, bounds } from './physics.js';
 import { RigidObject, decomposeAffine } from './rigid.js';
 
@@ -30,25 +30,6 @@ export function transformPoints(m, p, out) {
     return out;
 }
 
-/**
- * Inverse of an affine column-major 4x4 (binary64).
- * @param {ArrayLike<number>} m
- * @returns {Float64Array}
- */
-export function invertAffine(m) {
-    const a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
-    const A = e * k - f * h, B = -(d * k - f * g), C = d * h - e * g;
-    const det = a * A + b * B + c * C;
-    if (!det) throw new Error('the splat node matrix is singular');
-    const r = 1 / det;
-    const inv = new Float64Array(16);
-    inv[0] = A * r; inv[4] = -(b * k - c * h) * r; inv[8] = (b * f - c * e) * r;
-    inv[1] = B * r; inv[5] = (a * k - c * g) * r; inv[9] = -(a * f - c * d) * r;
-    inv[2] = C * r; inv[6] = -(a * h - b * g) * r; inv[10] = (a * e - b * d) * r;
-    for (let i = 0; i < 3; i++) inv[12 + i] = -(inv[i] * m[12] + inv[4 + i] * m[13] + inv[8 + i] * m[14]);
-    inv[15] = 1;
-    return inv;
-}
 
 /**
  * Unique edges of a triangle list.
@@ -83,6 +64,17 @@ function uniqueEdges(faces) {
  * @property {Float32Array} lines    wireframe line buffer
  * @property {Float32Array} wire     physics vertex positions scratch for the wireframe
  */
+
+/**
+ * m⁻¹ (column-major 4x4, binary64), for a splat node's matrix.
+ * @param {ArrayLike<number>} m
+ * @returns {Float64Array}
+ */
+function inverse(m) {
+    const out = new Float64Array(16);
+    if (!invertInto(Float64Array.from(m), 0, out)) throw new Error('the splat node matrix is singular');
+    return out;
+}
 
 export class DemoAsset {
     /**
@@ -185,7 +177,7 @@ export class DemoAsset {
             const edges = uniqueEdges(soft.faces);
             if (this.isScene) soft.setGravity(1);
             this.bodies.push({
-                splat, soft, toWorld, toLocal: invertAffine(toWorld),
+                splat, soft, toWorld, toLocal: inverse(toWorld),
                 world: worldVerts, local: new Float32Array(mesh.vertices.length), posed: new Float32Array(mesh.vertices.length),
                 edges, lines: new Float32Array(edges.length * 3), wire: new Float32Array(3 * soft.count),
             });

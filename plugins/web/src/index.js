@@ -11,6 +11,7 @@ export {
     matrixToQuatInto, quatToMatrix, JACOBI_SWEEPS,
 } from './decompose.js';
 export { AnchorAnimation, readAnchorAnimation } from './animation.js';
+export { invertInto } from './keyframes.js';
 export { readPhysics, RIGID_BODIES, IMPLICIT_SHAPES, PHYSICS_KINDS } from './physics.js';
 
 // the shared types (src/types.js), for `import type { AnchoredPrimitive } from '@gsverse/web'`

@@ -14,6 +14,7 @@
 // for a record that is not an object, NON_FINITE_VALUE for a hull vertex).
 
 import { AnchorError, EXTENSION, KHR } from './anchor.js';
+import { invertInto } from './keyframes.js';
 import { FLOAT, GltfError, globalMatrices, isIndex, mat4Multiply, nodeLocalMatrix, nodeParents, parseGltf } from './glb.js';
 
 export const RIGID_BODIES = 'KHR_physics_rigid_bodies';
@@ -101,7 +102,13 @@ function readHull(doc, body, h, what, matrices, parents) {
     /** @type {number[]} */
     const indices = [];
     let m = nodeLocalMatrix(node);
-    if (parents[h] >= 0) m = mat4Multiply(invertAffine(matrices()[body], what), matrices()[h]);
+    if (parents[h] >= 0) {
+        const toBody = new Float64Array(16);
+        if (!invertInto(Float64Array.from(matrices()[body]), 0, toBody)) {
+            throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}: the body node's matrix is singular`);
+        }
+        m = mat4Multiply(toBody, matrices()[h]);
+    }
     prims.forEach((/** @type {any} */ prim, /** @type {number} */ p) => {
         const w = `meshes[${node.mesh}].primitives[${p}] (the collider of ${what})`;
         if (!isObject(prim) || !isObject(prim.attributes)) throw new GltfError(GEOMETRY, `${w} has no attributes`);
@@ -133,23 +140,6 @@ function readHull(doc, body, h, what, matrices, parents) {
     return { vertices: Float32Array.from(vertices), indices: Uint32Array.from(indices) };
 }
 
-/**
- * Inverse of an affine column-major 4x4 (binary64).
- * @param {Float64Array} m @param {string} what
- */
-function invertAffine(m, what) {
-    const a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], k = m[10];
-    const A = e * k - f * h, B = -(d * k - f * g), C = d * h - e * g;
-    const det = a * A + b * B + c * C;
-    if (!det || !Number.isFinite(det)) throw new GltfError('GLTF_SCHEMA_VIOLATION', `${what}: the body node's matrix is singular`);
-    const r = 1 / det, inv = new Float64Array(16);
-    inv[0] = A * r; inv[4] = -(b * k - c * h) * r; inv[8] = (b * f - c * e) * r;
-    inv[1] = B * r; inv[5] = (a * k - c * g) * r; inv[9] = -(a * f - c * d) * r;
-    inv[2] = C * r; inv[6] = -(a * h - b * g) * r; inv[10] = (a * e - b * d) * r;
-    for (let i = 0; i < 3; i++) inv[12 + i] = -(inv[i] * m[12] + inv[4 + i] * m[13] + inv[8 + i] * m[14]);
-    inv[15] = 1;
-    return inv;
-}
 
 /**
  * The implicit shape `s` as this reader uses it, or null for a type of the draft it does not build.
