@@ -207,13 +207,16 @@ def test_progress_bar_over_files_and_off_under_quiet(library, tmp_path, monkeypa
             assert err.getvalue() == ""
 
 
-def test_interrupted_batch_leaves_no_partial_outputs(tmp_path):
+def start_batch(tmp_path: Path, splats: int, seed: int):
+    """Six copies of ``splats`` random splats anchored to the capsule's mesh by a batch of two
+    local workers, started as a child (``--json``); returns (process, output folder, the
+    splats)."""
     from helpers import random_splats
     from gsverse_format.io.ply import write_splat_ply
 
     inputs = tmp_path / "in"
     inputs.mkdir()
-    cloud = random_splats(100_000, seed=3, sh_degree=0)
+    cloud = random_splats(splats, seed=seed, sh_degree=0)
     for i in range(6):
         write_splat_ply(cloud, inputs / f"c{i}.ply")
     out = tmp_path / "out"
@@ -221,6 +224,11 @@ def test_interrupted_batch_leaves_no_partial_outputs(tmp_path):
                              str(inputs / "*.ply"), "-o", str(out), "--mesh",
                              str(CAPSULE / "mesh.obj"), "-j", "2", "--json"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return proc, out, cloud
+
+
+def test_interrupted_batch_leaves_no_partial_outputs(tmp_path):
+    proc, out, cloud = start_batch(tmp_path, 100_000, seed=3)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
         if out.is_dir() and any(out.iterdir()):  # a conversion is writing

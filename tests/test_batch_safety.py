@@ -95,19 +95,9 @@ def test_an_output_that_is_an_input_of_the_batch_is_refused(tree):
 
 
 def test_a_killed_worker_fails_only_its_own_asset(tmp_path):
-    from helpers import random_splats
-    from gsverse_format.io.ply import write_splat_ply
+    from test_batch import start_batch
 
-    inputs = tmp_path / "in"
-    inputs.mkdir()
-    cloud = random_splats(60_000, seed=5, sh_degree=0)
-    for i in range(6):
-        write_splat_ply(cloud, inputs / f"c{i}.ply")
-    out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "gsverse_format.cli.convert",
-                             str(inputs / "*.ply"), "-o", str(out), "--mesh",
-                             str(CAPSULE / "mesh.obj"), "-j", "2", "--json"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc, out, cloud = start_batch(tmp_path, 60_000, seed=5)
     killed = None
     deadline = time.monotonic() + 240
     try:

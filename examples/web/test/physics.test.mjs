@@ -10,6 +10,7 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { haveJolt, jolt } from './jolt.mjs';
 import { weldVertices, weldFaces, isClosed, bounds, PhysicsWorld, SoftBodyMesh, DEFAULT_BUDGET } from '../physics.js';
 import { buildPhysicsMesh, triangleOverlapsBox, applyEmbedding } from '../physmesh.js';
 import { SliderDrive, Drag, Shake } from '../controls.js';
@@ -17,21 +18,8 @@ import { SliderDrive, Drag, Shake } from '../controls.js';
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, '..', '..', '..');
 const EXAMPLE = path.join(REPO, 'examples', 'web', 'capsule.glb');
-const JOLT = path.join(REPO, 'plugins', 'web', 'node_modules', 'jolt-physics', 'dist', 'jolt-physics.wasm-compat.js');
-const haveJolt = fs.existsSync(JOLT);
 const haveAssets = fs.existsSync(EXAMPLE) && haveJolt;
 const EXTRA = (process.env.GSVERSE_DEMO_ASSETS || '').split(path.delimiter).filter(Boolean);
-
-/** @type {any} */
-let joltModule = null;
-/** One Jolt module for the file (each PhysicsWorld allocates from it). */
-async function jolt() {
-    if (!joltModule) {
-        const { default: initJolt } = await import(JOLT);
-        joltModule = await initJolt();
-    }
-    return joltModule;
-}
 
 /** @param {string} file */
 async function anchorMeshOf(file) {

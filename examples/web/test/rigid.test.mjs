@@ -9,27 +9,17 @@ import assert from 'node:assert/strict';
 import fs from 'node:fs';
 import path from 'node:path';
 import { fileURLToPath } from 'node:url';
+import { haveJolt, jolt } from './jolt.mjs';
 import { PhysicsWorld, SoftBodyMesh, bounds } from '../physics.js';
 import { RigidObject, RigidDrag, decomposeAffine, rotate } from '../rigid.js';
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, '..', '..', '..');
 const SCENE = path.join(REPO, 'examples', 'web', 'scene.glb');
-const JOLT = path.join(REPO, 'plugins', 'web', 'node_modules', 'jolt-physics', 'dist', 'jolt-physics.wasm-compat.js');
-const skip = !fs.existsSync(JOLT) ? 'jolt-physics is not installed (npm ci in plugins/web)' : !fs.existsSync(SCENE) ? 'examples/web/scene.glb is missing' : false;
+const skip = !haveJolt ? 'jolt-physics is not installed (npm ci in plugins/web)' : !fs.existsSync(SCENE) ? 'examples/web/scene.glb is missing' : false;
 const DT = 1 / 60;
 /** how high the test lifts the objects before they fall (world units) */
 const LIFT = 0.6;
-
-/** @type {any} */
-let joltModule = null;
-async function jolt() {
-    if (!joltModule) {
-        const { default: initJolt } = await import(JOLT);
-        joltModule = await initJolt();
-    }
-    return joltModule;
-}
 
 /** The scene's objects in one world, as the demo builds them. */
 async function buildScene() {
