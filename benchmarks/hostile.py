@@ -19,8 +19,17 @@ material file is never opened); ``.spz`` files of compressed zeros declaring mil
 splats (zstd v4, gzip v2); a ``.sog`` whose WebP header declares 8192² pixels; anchor meshes
 far from a manifold (one OBJ polygon of 20,000 corners, 100,000 copies of one triangle);
 an anchor mesh with 50,000 morph targets sharing one accessor, one at the end of a chain of
-90,000 nodes, a truncated binary STL. (The limits of ``gsverse-pose`` and ``gsverse-render``
-arguments and of ``.npz`` vertex caches are measured by ``tests/test_hostile_amplify.py``.)
+90,000 nodes, a truncated binary STL; for ``gsverse-pose``, a pose source whose key times run
+to 4,166 s at ``--fps 24``, a 300-byte ``.npz`` vertex cache declaring 10¹¹ elements, one of
+the wrong vertex count (48 MB declared), ``--vat-width 1e9``; ``gsverse-render --size 16384``.
+
+Stop signals: the last rows send SIGTERM to a conversion busy in native code that holds the
+interpreter (screened Poisson reconstructing an anchor mesh from 200,000 splats, pymeshlab
+decimating a 1.3M-face mesh; ``--quick``: smaller) a fixed delay after it starts, and give the
+time from the signal to the process's end (the goal: a second or two) and its exit status
+(``-15``: ended by the signal's default action inside the native call, 143: by the command's
+own handling). The delay is chosen to fall inside that step on this machine; the row says
+how far the run got.
 """
 from __future__ import annotations
 
@@ -28,8 +37,11 @@ import argparse
 import base64
 import json
 import os
+import signal
+import subprocess
 import sys
 import tempfile
+import time
 from typing import Callable
 
 import numpy as np
@@ -252,6 +264,108 @@ def truncated_stl(folder: str, quick: bool) -> str:
     return path
 
 
+def long_key_times(folder: str, quick: bool) -> str:
+    """A pose source (one morph target on a quad) whose key times run to 4,166 s."""
+    return _pose_source(os.path.join(folder, "long_keys.glb"), (0.0, 4166.0))
+
+
+QUAD = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+QUAD_FACES = np.array([[0, 1, 2], [1, 3, 2]], np.uint16)
+
+
+def quad_asset(folder: str) -> str:
+    """An asset of 200 splats anchored to QUAD (the mesh of the pose sources)."""
+    from gsverse_format import api
+    from gsverse_format.examples import example_splats
+    from gsverse_format.model import SplatAsset, SplatPrimitive, TriangleMesh
+
+    mesh = TriangleMesh(QUAD, QUAD_FACES.astype(np.int64))
+    cloud = example_splats(mesh, 200)
+    path = os.path.join(folder, "quad.glb")
+    api.write(SplatAsset([SplatPrimitive(cloud, api.bind(cloud, mesh), "quad")]), path)
+    return path
+
+
+def _pose_source(path: str, key_times: tuple[float, ...]) -> str:
+    quad = QUAD
+    times = np.asarray(key_times, np.float32)
+    parts = [quad.tobytes(), QUAD_FACES.tobytes(),
+             np.full((4, 3), 0.1, np.float32).tobytes(), times.tobytes(),
+             np.linspace(0, 1, len(times), dtype=np.float32).tobytes()]
+    views, offset = [], 0
+    for part in parts:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(part)})
+        offset += len(part)
+    scalar = {"componentType": 5126, "count": len(times), "type": "SCALAR"}
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}], "bufferViews": views,
+           "buffers": [{"byteLength": offset}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                          "min": [0, 0, 0], "max": [1, 1, 0]},
+                         {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+                         {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3"},
+                         {"bufferView": 3, **scalar}, {"bufferView": 4, **scalar}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
+                                       "targets": [{"POSITION": 2}]}], "weights": [0]}],
+           "animations": [{"samplers": [{"input": 3, "output": 4}],
+                           "channels": [{"sampler": 0,
+                                         "target": {"node": 0, "path": "weights"}}]}]}
+    return _glb(path, doc, b"".join(parts))
+
+
+def _npz_declaring(path: str, shape: tuple[int, ...], payload: bytes = b"") -> str:
+    import io
+    import zipfile
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f4", "fortran_order": False,
+                                                  "shape": shape})
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("vertices.npy", header.getvalue() + payload)
+    return path
+
+
+def npz_declaring_1e11(folder: str, quick: bool) -> str:
+    """A ``.npz`` vertex cache of 300 bytes whose header declares 10¹¹ float32 elements."""
+    return _npz_declaring(os.path.join(folder, "bomb.npz"), (1, 33_333_333_334, 3))
+
+
+def npz_wrong_vertices(folder: str, quick: bool) -> str:
+    """A real ``.npz`` cache of 2,000 frames of 1,000 vertices (48 MB declared, within the
+    ratio to its size) for an asset whose anchor mesh has another vertex count."""
+    path = os.path.join(folder, "wrong.npz")
+    np.savez_compressed(path, vertices=np.zeros((2000, 1000, 3), np.float64))
+    return path
+
+
+def the_asset(folder: str, quick: bool) -> str:
+    """The example's anchored asset (the argument limits of gsverse-pose and -render)."""
+    return os.path.join(folder, "asset.glb")
+
+
+def big_capture(folder: str, quick: bool) -> str:
+    """A 3DGS PLY of 200,000 splats on the example's surface (quick: 60,000), no mesh."""
+    from gsverse_format.examples import example_mesh, example_splats
+    from gsverse_format.io.ply import write_splat_ply
+
+    path = os.path.join(folder, "capture.ply")
+    write_splat_ply(example_splats(example_mesh(), 60_000 if quick else 200_000), path)
+    return path
+
+
+def dense_mesh(folder: str, quick: bool) -> str:
+    """An OBJ icosphere of 1.3M faces (quick: 330k), to be decimated to 1,000."""
+    import trimesh
+
+    from gsverse_format.examples import write_obj
+    from gsverse_format.model import TriangleMesh
+
+    sphere = trimesh.creation.icosphere(subdivisions=7 if quick else 8)
+    path = os.path.join(folder, "dense.obj")
+    write_obj(TriangleMesh(sphere.vertices.astype(np.float32), sphere.faces), path)
+    return path
+
+
 #: (name, builder, the limit it meets, which tools run on it).
 CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
     ("node graph, 4⁶⁰ instances", dag_bomb,
@@ -284,12 +398,49 @@ CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
     ("GLB mesh, node chain 90,000 deep", node_chain,
      f"MAX_NODE_DEPTH = {limits.MAX_NODE_DEPTH:,}", ("mesh",)),
     ("binary STL, truncated", truncated_stl, "declared triangles vs file size", ("mesh",)),
+    ("pose source, key times to 4,166 s at 24 fps", long_key_times,
+     f"MAX_POSES = {limits.MAX_POSES:,}", ("pose",)),
+    (".npz vertex cache declaring 10¹¹ elements", npz_declaring_1e11,
+     f"MAX_NPZ_RATIO = {limits.MAX_NPZ_RATIO}, from its header", ("pose",)),
+    (".npz vertex cache, wrong vertex count", npz_wrong_vertices,
+     "vertex count from its header", ("pose",)),
+    ("anchored asset, --vat-width 1e9", the_asset, f"MAX_VAT_WIDTH = {limits.MAX_VAT_WIDTH:,}",
+     ("vat-width",)),
+    ("anchored asset, --size 16384x16384", the_asset,
+     f"MAX_RENDER_PIXELS = {limits.MAX_RENDER_PIXELS:,}", ("render-size",)),
+    ("SIGTERM in screened Poisson (no --mesh)", big_capture,
+     "stop signals end native calls", ("sigterm-convert",)),
+    ("SIGTERM in pymeshlab decimation (--faces 1000)", dense_mesh,
+     "stop signals end native calls", ("sigterm-mesh",)),
 ]
+
+#: seconds after the start at which the SIGTERM rows send the signal (inside the step named,
+#: on a 2-core machine: reading and normals take ~3 s, the step itself 10-40 s)
+SIGTERM_AFTER_S = 6.0
 
 
 def _commands(tool: str, path: str, folder: str, quick: bool) -> list[str]:
     exe = os.path.dirname(sys.executable)
     out = os.path.join(folder, "out.glb")
+    asset = os.path.join(folder, "asset.glb")
+    poses = os.path.join(folder, "poses")
+    if tool == "pose":     # the file as the pose source of an asset anchored to a quad
+        return [os.path.join(exe, "gsverse-pose"), os.path.join(folder, "quad.glb"), "--source",
+                path, "--fps", "24",
+                "--output-dir", poses]
+    if tool == "vat-width":
+        return [os.path.join(exe, "gsverse-pose"), path, "--deform", "twist=30", "--vat",
+                os.path.join(folder, "vat.exr"), "--vat-width", str(10 ** 9)]
+    if tool == "render-size":
+        return [os.path.join(exe, "gsverse-render"), path, os.path.join(folder, "r.png"),
+                "--size", "16384x16384"]
+    if tool == "sigterm-convert":
+        return [os.path.join(exe, "gsverse-convert"), path, out, "--overwrite",
+                "--reconstruct-faces", "200000"]
+    if tool == "sigterm-mesh":
+        splats = os.path.join(folder, "example", "splats.ply")
+        return [os.path.join(exe, "gsverse-convert"), splats, out, "--mesh", path, "--faces",
+                "1000", "--overwrite"]
     if tool == "validate":
         extra = ["--max-data-uri-bytes", "8M"] if quick and path.endswith("data_uri.gltf") else []
         return [os.path.join(exe, "gsverse-validate"), *extra, path]
@@ -312,23 +463,63 @@ def _outcome(res: dict) -> str:
     return f"exit {res['rc']}: {words[:80]}"
 
 
+def _terminated(cmd: list[str], after_s: float) -> dict:
+    """Run ``cmd``, send it SIGTERM ``after_s`` seconds after its start; the time from the
+    signal to its end is ``signal_to_exit_s``."""
+    with tempfile.TemporaryFile() as out:
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=out, stderr=subprocess.STDOUT)
+        try:
+            proc.wait(timeout=after_s)
+        except subprocess.TimeoutExpired:
+            pass
+        sent = time.perf_counter()
+        if proc.returncode is None:
+            proc.send_signal(signal.SIGTERM)
+        _, status, usage = os.wait4(proc.pid, 0)
+        end = time.perf_counter()
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        text = out.read().decode("utf-8", "replace")
+    return {"wall_s": end - t0, "rc": proc.returncode, "peak_rss_mb": usage.ru_maxrss / 1024.0,
+            "output": text, "signal_to_exit_s": end - sent}
+
+
+#: how each tool is named in the table
+_TOOL_NAMES = {"mesh": "convert --mesh", "pose": "pose --source", "vat-width": "pose --vat",
+               "render-size": "render", "sigterm-convert": "convert, SIGTERM",
+               "sigterm-mesh": "convert --mesh, SIGTERM"}
+
+
 def run(quick: bool, log: Callable[[str], None] = print) -> list[dict]:
     from gsverse_format.examples import make_example
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="gsverse-hostile-") as folder:
-        make_example(os.path.join(folder, "example"))
+        ply, obj = make_example(os.path.join(folder, "example"))
+        subprocess.run([os.path.join(os.path.dirname(sys.executable), "gsverse-convert"), ply,
+                        os.path.join(folder, "asset.glb"), "--mesh", obj, "--quiet"],
+                       check=True)
+        quad_asset(folder)
         for name, build, limit, tools in CASES:
             path = build(folder, quick)
             size = os.path.getsize(path)
             for tool in tools:
                 cmd = _commands(tool, path, folder, quick)
                 log(f"{name}: {os.path.basename(cmd[0])} {os.path.basename(path)}")
-                res = run_process(cmd)
-                rows.append({"case": name, "tool": "convert --mesh" if tool == "mesh" else tool,
-                             "bytes": size, "limit": limit, "outcome": _outcome(res),
-                             "wall_s": res["wall_s"], "peak_rss_mb": res["peak_rss_mb"]})
-            os.remove(path)
+                if tool.startswith("sigterm"):
+                    res = _terminated(cmd, SIGTERM_AFTER_S)
+                    outcome = (f"exit {res['rc']} {res['signal_to_exit_s']:.2f} s after the "
+                               f"signal" if res["wall_s"] > SIGTERM_AFTER_S else
+                               f"finished before the signal: {_outcome(res)}")
+                else:
+                    res = run_process(cmd)
+                    outcome = _outcome(res)
+                rows.append({"case": name, "tool": _TOOL_NAMES.get(tool, tool), "bytes": size,
+                             "limit": limit, "outcome": outcome, "wall_s": res["wall_s"],
+                             "peak_rss_mb": res["peak_rss_mb"]})
+            if path != the_asset(folder, quick):
+                os.remove(path)
     return rows
 
 

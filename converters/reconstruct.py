@@ -60,6 +60,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from gsverse_format.atomic import interruptions_immediate
 from gsverse_format.converters.base import SourceResult
 from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.meshops import bbox_diagonal, decimate, face_components, mesh_stats, repair
@@ -200,8 +201,9 @@ def _poisson(points: np.ndarray, normals: np.ndarray, weights: np.ndarray, depth
     ms = pymeshlab.MeshSet()
     ms.add_mesh(pymeshlab.Mesh(vertex_matrix=points, v_normals_matrix=normals,
                                v_scalar_array=weights))
-    ms.generate_surface_reconstruction_screened_poisson(
-        depth=int(depth), confidence=True, preclean=False, threads=int(threads))
+    with interruptions_immediate():
+        ms.generate_surface_reconstruction_screened_poisson(
+            depth=int(depth), confidence=True, preclean=False, threads=int(threads))
     m = ms.current_mesh()
     m.compact()
     v = np.array(m.vertex_matrix(), dtype=np.float64, copy=True)

@@ -33,7 +33,8 @@ from typing import IO, Any, Callable, Iterator, TypeVar
 from .errors import OutputError, UsageError
 
 __all__ = ["atomic_write", "temporary_folder", "check_target", "file_mode", "is_temporary",
-           "sweep_stale", "discard_temporaries", "interruptions_deferred", "outputs_written",
+           "sweep_stale", "discard_temporaries", "interruptions_deferred",
+           "interruptions_immediate", "outputs_written",
            "output_error", "make_folder",
            "TEMP_MARK", "STALE_AFTER_S"]
 
@@ -438,6 +439,46 @@ def interruptions_deferred() -> Iterator[None]:
         _restore_handlers(saved)
         for signum in dict.fromkeys(received):  # an interruption wins over any other error
             signal.raise_signal(signum)
+
+
+@contextlib.contextmanager
+def interruptions_immediate() -> Iterator[None]:
+    """While inside, SIGINT, SIGTERM and SIGHUP end the process at once, by the system's
+    default action, instead of waiting for their Python handlers: for native calls that hold
+    the interpreter for long (manifold3d, pymeshlab's filters, screened Poisson), during which
+    no Python handler can run, so that a stop signal or a time limit (``timeout``) still ends
+    the command within a second. The process then exits as killed by the signal (a shell
+    reports 128 + its number, as the command-line tools' own handling does). Nothing is
+    half-written: outputs appear only by renaming a finished temporary, and a temporary left
+    by a process so ended is removed by the next write into its folder
+    (:func:`sweep_stale`). Signals received before the block have their handlers run first;
+    those received on leaving are handled by the handlers put back. Main thread only, and
+    only signals with Python handlers; the others (ignored, default) are left as they are.
+    Without POSIX signal masks (Windows) nothing changes."""
+    if (threading.current_thread() is not threading.main_thread()
+            or not hasattr(signal, "pthread_sigmask")):
+        yield
+        return
+    saved: list[tuple[int, Any]] = []
+    blocked = set(_STOP_SIGNALS)
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, blocked)
+    try:
+        _deliver_pending_signals()   # a handler raising here leaves with the mask restored
+        for signum in _STOP_SIGNALS:
+            handler = signal.getsignal(signum)
+            if callable(handler):
+                saved.append((signum, handler))
+                signal.signal(signum, signal.SIG_DFL)
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    try:
+        yield
+    finally:
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, blocked)
+        try:
+            _restore_handlers(saved)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def _restore_handlers(saved: list[tuple[int, Any]]) -> None:

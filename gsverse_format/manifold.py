@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from .atomic import interruptions_immediate
 from .errors import FormatError, UsageError
 from .meshops import mesh_stats, repair, weld
 from .model import TriangleMesh
@@ -93,8 +94,9 @@ def _to_manifold(m3d: Any, mesh: TriangleMesh) -> Any:
     """manifold3d's ``Manifold`` of ``mesh`` with duplicate vertices merged."""
     m = m3d.Mesh(vert_properties=np.array(mesh.vertices, np.float32, order="C"),
                  tri_verts=np.array(mesh.faces, np.uint32, order="C"))
-    m.merge()
-    return m3d.Manifold(m)
+    with interruptions_immediate():
+        m.merge()
+        return m3d.Manifold(m)
 
 
 def _from_manifold(manifold: Any) -> TriangleMesh:
@@ -158,10 +160,11 @@ def _pymeshlab_close(mesh: TriangleMesh) -> TriangleMesh:
     try:
         ms = _meshset(repair(mesh))
         hole = max(30, mesh.face_count)
-        ms.meshing_close_holes(maxholesize=hole)
-        ms.meshing_repair_non_manifold_edges(method="Remove Faces")
-        ms.meshing_repair_non_manifold_vertices()
-        ms.meshing_close_holes(maxholesize=hole)
+        with interruptions_immediate():
+            ms.meshing_close_holes(maxholesize=hole)
+            ms.meshing_repair_non_manifold_edges(method="Remove Faces")
+            ms.meshing_repair_non_manifold_vertices()
+            ms.meshing_close_holes(maxholesize=hole)
         vertices, faces = _current(ms)
         del ms
     except failures as exc:
@@ -202,7 +205,8 @@ def collider(mesh: TriangleMesh, kind: str = "hull") -> TriangleMesh:
         raise UsageError(f"--collider must be one of {', '.join(COLLIDER_KINDS)}, not {kind!r}")
     m3d = _require_manifold3d(f"--collider {kind}")
     points = np.array(mesh.vertices, np.float32, order="C")
-    hull = m3d.Manifold.hull_points(points)
+    with interruptions_immediate():
+        hull = m3d.Manifold.hull_points(points)
     # manifold3d returns a flat "hull" of thousands of triangles for coplanar points: a hull
     # whose volume is at most HULL_MIN_VOLUME times the cube of the points' bounding-box
     # diagonal spans no volume.

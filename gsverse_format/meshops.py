@@ -35,6 +35,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .atomic import interruptions_immediate
 from .errors import FormatError, UsageError
 from .frames import degenerate_mask
 from .model import TriangleMesh
@@ -308,7 +309,8 @@ def repair(mesh: TriangleMesh) -> TriangleMesh:
     failures = _pymeshlab_errors()
     try:
         ms = _meshset(cleaned)
-        ms.meshing_repair_non_manifold_edges(method="Remove Faces")
+        with interruptions_immediate():
+            ms.meshing_repair_non_manifold_edges(method="Remove Faces")
         m = ms.current_mesh()
         m.compact()
         kept = np.array(m.face_matrix(), dtype=np.int64, copy=True).reshape(-1, 3)
@@ -368,11 +370,12 @@ def decimate(mesh: TriangleMesh, target_faces: int, *, preserve_boundary: bool =
         ms = _meshset(source)
         last = source.face_count
         for _ in range(max(1, int(max_passes))):
-            ms.meshing_decimation_quadric_edge_collapse(
-                targetfacenum=target, qualitythr=float(quality_threshold),
-                preserveboundary=bool(preserve_boundary), boundaryweight=1.0,
-                preservenormal=True, preservetopology=bool(preserve_topology),
-                optimalplacement=True, planarquadric=True, autoclean=True)
+            with interruptions_immediate():
+                ms.meshing_decimation_quadric_edge_collapse(
+                    targetfacenum=target, qualitythr=float(quality_threshold),
+                    preserveboundary=bool(preserve_boundary), boundaryweight=1.0,
+                    preservenormal=True, preservetopology=bool(preserve_topology),
+                    optimalplacement=True, planarquadric=True, autoclean=True)
             now = ms.current_mesh().face_number()
             if now <= target * 1.005 or now >= last * 0.995:
                 break

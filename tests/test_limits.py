@@ -295,9 +295,22 @@ def test_hostile_benchmark_refuses_every_input():
                 ("GLB mesh, morph targets sharing one accessor", "convert --mesh"):
                     "morph targets would read",
                 ("GLB mesh, node chain 90,000 deep", "convert --mesh"): "levels deep",
-                ("binary STL, truncated", "convert --mesh"): "truncated binary STL"}
+                ("binary STL, truncated", "convert --mesh"): "truncated binary STL",
+                ("pose source, key times to 4,166 s at 24 fps", "pose --source"): "exit 2: lower --fps",
+                (".npz vertex cache declaring 10¹¹ elements", "pose --source"):
+                    "declares 100000000002 elements",
+                (".npz vertex cache, wrong vertex count", "pose --source"):
+                    "holds 1000 vertices per frame",
+                ("anchored asset, --vat-width 1e9", "pose --vat"): "exit 2: --vat-width",
+                ("anchored asset, --size 16384x16384", "render"): "pixels"}
     for key, phrase in expected.items():
         assert phrase in rows[key], (key, rows[key])
+    # stop signals: ended by the signal (-15 in the native call, 143 by the command's
+    # handling), or done before the signal came (a fast machine); never an internal error
+    for key in (("SIGTERM in screened Poisson (no --mesh)", "convert, SIGTERM"),
+                ("SIGTERM in pymeshlab decimation (--faces 1000)", "convert --mesh, SIGTERM")):
+        assert rows[key].startswith(("exit -15 ", "exit 143 ", "finished before the signal: "
+                                     "exit 0")), (key, rows[key])
 
 
 #: A 4 KB ``.usdc`` (one of our own USD files with bytes changed by the fuzz harness) on which
