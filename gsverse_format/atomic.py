@@ -444,10 +444,13 @@ def interruptions_deferred() -> Iterator[None]:
 @contextlib.contextmanager
 def interruptions_immediate() -> Iterator[None]:
     """While inside, SIGINT, SIGTERM and SIGHUP end the process at once, by the system's
-    default action, instead of waiting for their Python handlers: for native calls that hold
-    the interpreter for long (manifold3d, pymeshlab's filters, screened Poisson), during which
-    no Python handler can run, so that a stop signal or a time limit (``timeout``) still ends
-    the command within a second. The process then exits as killed by the signal (a shell
+    default action, instead of running their Python handlers. For three kinds of call:
+    native calls that hold the interpreter for long (manifold3d, pymeshlab's filters,
+    screened Poisson), during which no Python handler can run, so that a stop signal or a
+    time limit (``timeout``) still ends the command within a second; compiled numba code
+    and numba's import, which call back into Python, where an exception raised by a handler
+    crashes the process or becomes a ``SystemError`` or ``ImportError``; and library code that
+    catches ``BaseException`` (trimesh's readers), which would swallow the interruption. The process then exits as killed by the signal (a shell
     reports 128 + its number, as the command-line tools' own handling does). Nothing is
     half-written: outputs appear only by renaming a finished temporary, and a temporary left
     by a process so ended is removed by the next write into its folder

@@ -68,6 +68,8 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 
+from .atomic import interruptions_immediate
+
 __all__ = ["BACKENDS", "ENVIRONMENT_VARIABLE", "NEAREST_NUMPY_BELOW", "REMAP_NUMPY_BELOW",
            "BackendUnavailableError", "get_backend", "set_backend", "resolve_backend",
            "numba_available", "numba_unavailable_reason", "configure_numba"]
@@ -130,8 +132,12 @@ def configure_numba() -> None:
     """Import numba and prefer its OpenMP, then TBB, then workqueue threading layer (see
     "Threading layer" in the module docstring), unless ``NUMBA_THREADING_LAYER`` or
     ``NUMBA_THREADING_LAYER_PRIORITY`` is set. The compiled modules call it when imported;
-    it takes effect before numba first starts its threads."""
-    import numba
+    it takes effect before numba first starts its threads. Imported where a stop signal
+    ends the process at once (:func:`gsverse_format.atomic.interruptions_immediate`): an
+    interruption raised inside numba's import leaves it half set up, and its ``ImportError``
+    would then read as "numba unavailable" and the run go on without it."""
+    with interruptions_immediate():
+        import numba
 
     if not (os.environ.get("NUMBA_THREADING_LAYER")
             or os.environ.get("NUMBA_THREADING_LAYER_PRIORITY")):

@@ -151,3 +151,46 @@ def test_sigterm_during_pymeshlab_decimation_ends_the_process():
             sphere = trimesh.creation.icosphere(subdivisions=6)
             decimate(TriangleMesh(sphere.vertices.astype(np.float32), sphere.faces), 100)
         """) + _WATCH))
+
+
+def test_sigterm_during_the_compiled_nearest_search_ends_the_process():
+    # numba's compiled code calls back into Python (its progress callback here, unpickling
+    # constants elsewhere): an Interrupted raised by a handler there became a SystemError or
+    # a segmentation fault. The callback signals the child itself, from inside the search.
+    pytest.importorskip("numba")
+    _assert_killed_by_sigterm(_run_child(textwrap.dedent("""
+        import os, signal, sys
+        import numpy as np
+        from gsverse_format.cli.boundary import Interrupted, interrupting_signals
+        from gsverse_format.examples import example_mesh
+        from gsverse_format.nearest.dispatch import nearest_triangles
+
+        mesh = example_mesh()
+        points = np.random.default_rng(0).normal(size=(200_000, 3)).astype(np.float32)
+
+        def progress(done, total):
+            os.kill(os.getpid(), signal.SIGTERM)
+
+        with interrupting_signals():
+            try:
+                nearest_triangles(points, mesh.vertices, mesh.faces, chunk=4096,
+                                  progress=progress, method="numba")
+            except Interrupted:
+                sys.exit(143)
+        print("finished")
+        """)))
+
+
+def test_sigterm_while_trimesh_reads_a_mesh_ends_the_process(tmp_path):
+    # trimesh's import and OBJ reader catch BaseException (falling back to slower paths), so
+    # an Interrupted raised inside was swallowed and the conversion went on to write its output
+    from gsverse_format.examples import example_mesh, write_obj
+
+    obj = tmp_path / "mesh.obj"
+    write_obj(example_mesh(subdivisions=6), str(obj))
+    _assert_killed_by_sigterm(_run_child(textwrap.dedent(f"""
+        from gsverse_format.io.mesh import read_mesh
+
+        def call():
+            read_mesh({str(obj)!r})
+        """) + _WATCH))

@@ -23,6 +23,7 @@ import warnings
 
 import numpy as np
 
+from ..atomic import interruptions_immediate
 from ..errors import FormatError, UsageError
 from ..limits import MAX_MESH_FILE_BYTES
 from ..model import TriangleMesh
@@ -113,7 +114,8 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
 
         _refuse_point_cloud(read_ply_header(path), path)
         return read_ply_mesh(path, triangulate=True)
-    import trimesh
+    with interruptions_immediate():   # trimesh's import catches BaseException too
+        import trimesh
 
     try:
         data = _file_bytes(path)
@@ -121,7 +123,9 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
             data = strip_material_libraries(data)
         elif ext == ".stl":
             _check_binary_stl(data, path)
-        with warnings.catch_warnings():
+        # trimesh's readers catch BaseException and retry on slower paths, which would
+        # swallow an interruption raised inside them: there a stop signal ends the process
+        with warnings.catch_warnings(), interruptions_immediate():
             warnings.simplefilter("ignore")
             # bytes, not the path: trimesh gets no resolver and cannot open other files
             loaded = trimesh.load(io.BytesIO(data), file_type=ext[1:], process=False,

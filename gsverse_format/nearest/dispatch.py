@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike
 
 import numpy as np
 
+from ..atomic import interruptions_immediate
 from ..backend import NEAREST_NUMPY_BELOW, resolve_backend
 from .reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
 
@@ -58,9 +59,10 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
     if resolve_backend(method, argument="method", size=size,
                        numpy_below=NEAREST_NUMPY_BELOW) == "numba":
-        from .compiled import nearest_triangles_numba
+        with interruptions_immediate():   # compiled code: no Python handler may raise inside
+            from .compiled import nearest_triangles_numba
 
-        return nearest_triangles_numba(points, vertices, faces, exclude=exclude, chunk=chunk,
-                                       progress=progress)
+            return nearest_triangles_numba(points, vertices, faces, exclude=exclude,
+                                           chunk=chunk, progress=progress)
     return nearest_triangles_numpy(points, vertices, faces, exclude=exclude, chunk=chunk,
                                    progress=progress)

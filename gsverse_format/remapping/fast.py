@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import quaternion as quat
+from ..atomic import interruptions_immediate
 from ..backend import REMAP_NUMPY_BELOW, numba_available, resolve_backend
 from ..model import Anchoring, GamesAnchors
 from ..vocabulary import COV6_INDEX, COV6_ORDER
@@ -145,16 +146,17 @@ class FastRemapper:
             if self.profile == "local":
                 self._rest = prepare_rest(mesh.triangles())
             return
-        from . import compiled, compiled_runs
-
-        self._kernels = compiled
-        self._runs_kernels = compiled_runs
         self._faces = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         self._face = np.ascontiguousarray(anchors.face_index, dtype=np.int32)
-        # One pass over runs of splats sharing a face when the splats are grouped by face
-        # (files sort them so); otherwise a face pass into a table, then a splat pass.
-        self._plan = (compiled_runs.plan_runs(self._face, self.n_faces) if one_pass
-                      else None)
+        with interruptions_immediate():   # compiled code: no Python handler may raise inside
+            from . import compiled, compiled_runs
+
+            # One pass over runs of splats sharing a face when the splats are grouped by face
+            # (files sort them so); otherwise a face pass into a table, then a splat pass.
+            self._plan = (compiled_runs.plan_runs(self._face, self.n_faces) if one_pass
+                          else None)
+        self._kernels = compiled
+        self._runs_kernels = compiled_runs
         rows = self.n_faces if self._plan is None else self._plan.runs
         self._table = np.zeros((rows, compiled.TABLE_WIDTH), np.float32)
         self._qlocal, self._slocal, self._qface = _EMPTY4, _EMPTY3, _EMPTY4
@@ -227,6 +229,10 @@ class FastRemapper:
         out = self._out if out is None else out
         if self.backend == "numpy":
             return self._remap_numpy(v, out)
+        with interruptions_immediate():   # compiled code: no Python handler may raise inside
+            return self._remap_compiled(v, out)
+
+    def _remap_compiled(self, v: np.ndarray, out: RemapOutput) -> RemapOutput:
         workers = _threads()
         rotations, scales = ((out.rotations, out.scales) if self.rotations
                              else (_EMPTY4, _EMPTY3))
@@ -243,7 +249,7 @@ class FastRemapper:
                              out.means, out.cov6, self._qlocal, self._slocal, rotations, scales,
                              plan.size, workers)
             return out
-        self.face_pass(v)
+        self._face_pass(v)
         k = self._kernels
         if self.profile == "games":
             k.games_splats(self._face, self._consts, self._table, out.means, out.cov6,
@@ -258,6 +264,10 @@ class FastRemapper:
         path has no separate face pass)."""
         if self.backend == "numpy" or self._plan is not None:
             raise RuntimeError("only the two-pass compiled path has a separate face pass")
+        with interruptions_immediate():   # compiled code: no Python handler may raise inside
+            self._face_pass(vertices)
+
+    def _face_pass(self, vertices: np.ndarray) -> None:
         if self.profile == "games":
             self._kernels.games_faces(vertices, self._faces, self._table, _threads())
         else:

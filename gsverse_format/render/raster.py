@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..atomic import interruptions_immediate
 from ..backend import resolve_backend
 from .camera import Camera
 from .project_reference import TILE, Projected, Settings, project, tile_rects
@@ -39,8 +40,6 @@ class Image:
 def project_fast(means, covariances, sh, camera: Camera, settings: Settings = Settings()) -> Projected:
     """The compiled projection (:func:`project_compiled.project_kernel`), same output as
     :func:`project_reference.project`."""
-    from .project_compiled import project_kernel
-
     n = len(means)
     means2d = np.zeros((n, 2))
     conics = np.zeros((n, 3))
@@ -50,11 +49,15 @@ def project_fast(means, covariances, sh, camera: Camera, settings: Settings = Se
     fx, fy = camera.focal
     cx, cy = camera.center
     limx, limy = camera.tan_half_fov
-    project_kernel(np.ascontiguousarray(means, np.float64), np.ascontiguousarray(covariances, np.float64),
-                   np.ascontiguousarray(sh, np.float32), camera.rotation(),
-                   np.asarray(camera.eye, np.float64), fx, fy, cx, cy, limx, limy, camera.near,
-                   camera.far, settings.dilation, settings.extent_sigma, settings.min_extent,
-                   means2d, conics, depths, radii, colors)
+    with interruptions_immediate():   # compiled code: no Python handler may raise inside
+        from .project_compiled import project_kernel
+
+        project_kernel(np.ascontiguousarray(means, np.float64),
+                       np.ascontiguousarray(covariances, np.float64),
+                       np.ascontiguousarray(sh, np.float32), camera.rotation(),
+                       np.asarray(camera.eye, np.float64), fx, fy, cx, cy, limx, limy,
+                       camera.near, camera.far, settings.dilation, settings.extent_sigma,
+                       settings.min_extent, means2d, conics, depths, radii, colors)
     return Projected(means2d, conics, depths, radii, colors, radii > 0)
 
 
@@ -117,18 +120,20 @@ def render_gaussians(means: np.ndarray, covariances: np.ndarray, opacities: np.n
                                   camera, settings)
         img.color_space = color_space
         return img
-    from .project_compiled import bin_tiles, composite_tiles
-
     p = project_fast(means, covariances, sh, camera, settings)
     w, h = camera.width, camera.height
     tiles_x, tiles_y = -(-w // TILE), -(-h // TILE)
     rects = tile_rects(p.means2d, p.radii, p.valid, w, h)
-    offsets, ids = bin_tiles(_order(p), rects, tiles_x, tiles_x * tiles_y)
     rgb = np.zeros((h, w, 3))
     alpha = np.zeros((h, w))
     zsum = np.zeros((h, w))
     cut2 = np.inf if settings.cutoff is None else settings.cutoff ** 2
-    composite_tiles(offsets, ids, p.means2d, p.conics, np.ascontiguousarray(opacities, np.float64),
-                    p.colors, p.depths, w, h, TILE, tiles_x, cut2, settings.min_alpha,
-                    settings.max_alpha, settings.min_transmittance, rgb, alpha, zsum)
+    with interruptions_immediate():   # compiled code: no Python handler may raise inside
+        from .project_compiled import bin_tiles, composite_tiles
+
+        offsets, ids = bin_tiles(_order(p), rects, tiles_x, tiles_x * tiles_y)
+        composite_tiles(offsets, ids, p.means2d, p.conics,
+                        np.ascontiguousarray(opacities, np.float64), p.colors, p.depths, w, h,
+                        TILE, tiles_x, cut2, settings.min_alpha, settings.max_alpha,
+                        settings.min_transmittance, rgb, alpha, zsum)
     return _finish(rgb, alpha, zsum, color_space)
