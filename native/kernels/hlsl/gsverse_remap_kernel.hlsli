@@ -1,0 +1,48 @@
+// gsverse_remap_kernel.hlsli -- the remap of one splat from the engine's buffers.
+// An engine include (engines/) declares these buffers, then includes this file and calls
+// gsv_remap(i, profile, law) once per splat i (profile 0 local, 1 games; law 0 affine,
+// 1 rigid), one dispatch for every splat:
+//   StructuredBuffer<float> gsv_vertices  float[3V] the current anchor-mesh vertices, splat-local
+//   StructuredBuffer<uint>  gsv_indices   uint[3F]  triangles (0, 1, ..., 3F-1 when not indexed)
+//   StructuredBuffer<float> gsv_rest      float[8F] per face, computed in double on the CPU:
+//                                                   C_r^-1 row-major (4), a_r, 1/sqrt(a_r),
+//                                                   regular (1.0 or 0.0), unused
+//   StructuredBuffer<uint>  gsv_face      uint[N]   face of every splat
+//   StructuredBuffer<float> gsv_bary      float[2N] barycentrics (dequantized)
+//   StructuredBuffer<float> gsv_offset    float[N]  local: normalOffset; games: rho
+//   StructuredBuffer<float> gsv_rotation  float[4N] local: localRotation (x, y, z, w), normalized
+//   StructuredBuffer<float> gsv_scale     float[3N] local: localScale
+//   RWStructuredBuffer<float> gsv_means   float[3N] out
+//   RWStructuredBuffer<float> gsv_cov     float[6N] out: xx, xy, xz, yy, yz, zz
+// The layout is the GLSL kernel's (native/kernels/glsl/gsverse_remap.comp), binding for binding.
+
+#include "gsverse_remap_core.hlsli"
+
+float3 gsv_vertex(uint corner) {
+    uint v = gsv_indices[corner];
+    return float3(gsv_vertices[3 * v], gsv_vertices[3 * v + 1], gsv_vertices[3 * v + 2]);
+}
+
+void gsv_remap(uint i, uint profile, uint law) {
+    uint f = gsv_face[i];
+    float3 v0 = gsv_vertex(3 * f), v1 = gsv_vertex(3 * f + 1), v2 = gsv_vertex(3 * f + 2);
+    float2 bary = float2(gsv_bary[2 * i], gsv_bary[2 * i + 1]);
+    float3 mean;
+    float cov6[6];
+    if (profile == 1) {
+        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6);
+    } else {
+        uint r = 8 * f;
+        GsvLocalFace face = gsv_local_face(
+            v0, v1, v2, float4(gsv_rest[r], gsv_rest[r + 1], gsv_rest[r + 2], gsv_rest[r + 3]),
+            gsv_rest[r + 5], gsv_rest[r + 6] != 0.0);
+        float4 q = float4(gsv_rotation[4 * i], gsv_rotation[4 * i + 1], gsv_rotation[4 * i + 2],
+                          gsv_rotation[4 * i + 3]);
+        float3 s = float3(gsv_scale[3 * i], gsv_scale[3 * i + 1], gsv_scale[3 * i + 2]);
+        gsv_local_splat(face, bary, gsv_offset[i], q, s, law == 1, mean, cov6);
+    }
+    gsv_means[3 * i] = mean.x;
+    gsv_means[3 * i + 1] = mean.y;
+    gsv_means[3 * i + 2] = mean.z;
+    [unroll] for (uint j = 0; j < 6; ++j) gsv_cov[6 * i + j] = cov6[j];
+}

@@ -1,0 +1,106 @@
+"""The native remap kernels (native/kernels/: GLSL 450 and HLSL compute, the C# core) pass the
+conformance suite on real runtimes: the shaders compiled by glslang and run on Mesa's lavapipe
+through Vulkan (tests/native_kernels.py), the C# core under Mono (tests/csharp_core.py); and a
+deliberately broken variant of each fails exactly the cases it should.
+
+The tools are Debian packages that ``scripts/test`` installs (glslang-tools, mesa-vulkan-drivers,
+libvulkan-dev, mono-mcs, mono-runtime); without them these tests skip, and fail under
+``GSVERSE_REQUIRE_NODE_TOOLS=1`` (CI, after installing them).
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from gsverse_format.conformance.check import check_results
+from gsverse_format.conformance.export import export_suite
+from gsverse_format.conformance.harness import suite_cases
+
+import native_kernels
+
+
+def _require(missing: list[str]) -> None:
+    if not missing:
+        return
+    reason = "not installed: " + ", ".join(missing)
+    if os.environ.get("GSVERSE_REQUIRE_NODE_TOOLS") == "1":
+        pytest.fail(reason + "; required by GSVERSE_REQUIRE_NODE_TOOLS=1", pytrace=False)
+    pytest.skip(reason)
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("native-kernels") / "suite"
+    export_suite(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def manifests(suite) -> dict[str, dict]:
+    return {m["id"]: m for _, m in suite_cases(suite)}
+
+
+def _tagged(manifests: dict, prefix: str) -> set[str]:
+    return {cid for cid, m in manifests.items()
+            if m["kind"] != "invalid" and any(t.startswith(prefix) for t in m["tags"])}
+
+
+def _failed(report) -> set[str]:
+    return {c.id for c in report.cases if c.status != "pass"}
+
+
+def _kernel_report(language: str, suite: Path, out: Path, fault: str | None = None):
+    _require(native_kernels.missing_tools())
+    info = native_kernels.run(language, suite, out, fault=fault)
+    assert info["device"].startswith("lavapipe: llvmpipe")
+    return check_results(suite, out, level="numbers")
+
+
+@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
+def test_kernel_passes_every_numbers_case_on_lavapipe(language, suite, manifests, tmp_path):
+    report = _kernel_report(language, suite, tmp_path / "r")
+    assert report.ok, [(c.id, c.message) for c in report.cases if c.status != "pass"][:5]
+    # every case of the numbers level ran: remap and rig cases dumped, invalid ones refused
+    assert {c.id for c in report.cases} == set(manifests)
+    assert {m["kind"] for m in manifests.values()} == {"remap", "rig", "invalid"}
+    assert report.harness["device"].startswith("lavapipe")
+
+
+@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
+def test_broken_kernel_frame_axis_fails_the_local_cases(language, suite, manifests, tmp_path):
+    failed = _failed(_kernel_report(language, suite, tmp_path / "r", "frame-axis"))
+    local = _tagged(manifests, "profile:local")
+    # the float32 covariances of the rest sliver cannot tell the axes apart (test_conformance)
+    assert local - {"local-affine-rest-sliver-opened"} <= failed <= local
+
+
+@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
+def test_broken_kernel_games_axis_fails_exactly_the_games_cases(language, suite, manifests,
+                                                                 tmp_path):
+    failed = _failed(_kernel_report(language, suite, tmp_path / "r", "games-axis"))
+    assert failed == _tagged(manifests, "profile:games")
+
+
+def test_every_fault_edits_each_kernel_once(tmp_path):
+    """The broken variants are the shipped kernels with one edit (compile_kernel checks that the
+    correct text occurs exactly once) and still compile."""
+    _require(native_kernels.missing_tools())
+    for fault in native_kernels.FAULTS:
+        for language in native_kernels.LANGUAGES:
+            assert native_kernels.compile_kernel(language, tmp_path, fault).stat().st_size > 0
+
+
+def test_unity_binding_include_compiles(tmp_path):
+    """engines/unity.compute (plain global buffers and constants, Unity's kernel pragma) goes
+    through glslang's HLSL front-end: the core needs no Vulkan attributes."""
+    import subprocess
+
+    _require(native_kernels.missing_tools())
+    src = native_kernels.KERNELS / "hlsl" / "engines" / "unity.compute"
+    run = subprocess.run([native_kernels.glslang(), "-D", "-V", "-S", "comp", "-e", "GsvRemap",
+                          "--auto-map-bindings", str(src), "-o", str(tmp_path / "unity.spv")],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "vk::" not in (native_kernels.KERNELS / "hlsl" / "gsverse_remap_core.hlsli").read_text()
