@@ -1,4 +1,5 @@
-"""The remap kernels of native/kernels/ (GLSL 450 and HLSL compute) on a real Vulkan driver.
+"""The remap kernels of native/kernels/ (GLSL 450 and HLSL compute) on a real Vulkan driver, and
+the C# core of plugins/unity/ under Mono.
 
 A harness in the sense of spec/conformance.md: the importer is the C header's (the minimal
 reader, the header's dequantization and refusals, the rest quantities in double:
@@ -8,7 +9,11 @@ software driver lavapipe (``VK_ICD_FILENAMES`` names its ICD, so no other driver
 by the small C host ``native/kernels/vulkan/gsv_vk.c``, built here with the system C compiler
 against libvulkan. ``RESULTS/harness.json`` names the kernel, the compiler and the device.
 
-    python tests/native_kernels.py glsl|hlsl SUITE RESULTS [--fault NAME]
+    python tests/native_kernels.py glsl|hlsl|csharp SUITE RESULTS [--fault NAME]
+
+The C# core (``plugins/unity/Runtime``: reader, refusals, rest quantities in double, CPU remap in
+float) is its own importer: ``plugins/unity/Conformance~/Harness.cs`` writes the dumps; it is
+compiled with Mono's ``mcs`` and run with ``mono``.
 
 (``scripts/native-conformance`` installs the tools, runs this and ``gsverse-conformance check``.)
 ``--fault`` builds a deliberately broken kernel (:data:`FAULTS`), which the suite must catch.
@@ -35,7 +40,10 @@ from test_conformance_native import CPlugin, build, compiler  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 KERNELS = ROOT / "native" / "kernels"
 HOST = KERNELS / "vulkan" / "gsv_vk.c"
-LANGUAGES = ("glsl", "hlsl")
+UNITY = ROOT / "plugins" / "unity"
+#: the shading languages (run on lavapipe) and the C# core (run under Mono)
+KERNEL_LANGUAGES = ("glsl", "hlsl")
+LANGUAGES = KERNEL_LANGUAGES + ("csharp",)
 
 #: per language: the kernel's entry file, the core file the faults edit, glslang's arguments
 _SOURCES = {
@@ -48,10 +56,17 @@ _SOURCES = {
 FAULTS = {
     "frame-axis": ("the local profile's normal taken as e2 x e1 (a wrong frame axis)",
                    {"glsl": ("\n    cr = cross(e1, e2);", "\n    cr = cross(e2, e1);"),
-                    "hlsl": ("\n    cr = cross(e1, e2);", "\n    cr = cross(e2, e1);")}),
+                    "hlsl": ("\n    cr = cross(e1, e2);", "\n    cr = cross(e2, e1);"),
+                    "csharp": ("\n            cr = Float3.Cross(e1, e2);",
+                               "\n            cr = Float3.Cross(e2, e1);")}),
     "games-axis": ("the games frame's b1 built from w (towards v2) instead of u",
                    {"glsl": ("vec3 u = e1 - g, w = e2 - g", "vec3 u = e2 - g, w = e1 - g"),
-                    "hlsl": ("float3 u = e1 - g, w = e2 - g", "float3 u = e2 - g, w = e1 - g")}),
+                    "hlsl": ("float3 u = e1 - g, w = e2 - g", "float3 u = e2 - g, w = e1 - g"),
+                    "csharp": ("Float3 u = e1 - g, w = e2 - g", "Float3 u = e2 - g, w = e1 - g")}),
+    # the C# core is its own importer: one of its refusals dropped
+    "zero-rotation-accepted": ("a zero localRotation (or derived rest ROTATION) not refused",
+                               {"csharp": ("if (q[4 * i] == 0 && q[4 * i + 1] == 0",
+                                           "if (q.Length < 0 && q[4 * i + 1] == 0")}),
 }
 
 #: the number of float32 values per face of the rest buffer (binding 3)
@@ -75,9 +90,12 @@ def lavapipe_icd() -> str | None:
     return None
 
 
-def missing_tools() -> list[str]:
-    """What this harness needs and does not find (empty when it can run)."""
+def missing_tools(language: str = "glsl") -> list[str]:
+    """What the harness of ``language`` needs and does not find (empty when it can run)."""
     out = []
+    if language == "csharp":
+        return [tool for tool, package in (("mcs", "mono-mcs"), ("mono", "mono-runtime"))
+                if shutil.which(tool) is None]
     if glslang() is None:
         out.append("glslangValidator (Debian: glslang-tools)")
     if lavapipe_icd() is None:
@@ -234,11 +252,53 @@ def numbers_level(manifest: dict) -> bool:
     return manifest.get("kind") in ("remap", "rig", "invalid")
 
 
+def build_csharp(out_dir: Path, fault: str | None = None) -> Path:
+    """plugins/unity/Runtime/*.cs + Conformance~/Harness.cs compiled by mcs (a copy of the
+    sources, with ``fault`` applied to the one file it edits), warnings as errors."""
+    src = Path(out_dir) / f"src-csharp-{fault or 'ok'}"
+    shutil.copytree(UNITY / "Runtime", src / "Runtime", dirs_exist_ok=True)
+    if fault is not None:
+        good, bad = FAULTS[fault][1]["csharp"]
+        texts = {p: p.read_text(encoding="utf-8") for p in (src / "Runtime").glob("*.cs")}
+        where = [p for p, text in texts.items() if good in text]
+        if len(where) != 1 or texts[where[0]].count(good) != 1:
+            raise ValueError(f"fault {fault}: {good!r} is not in Runtime/*.cs exactly once")
+        where[0].write_text(texts[where[0]].replace(good, bad), encoding="utf-8")
+    exe = Path(out_dir) / f"harness-{fault or 'ok'}.exe"
+    sources = sorted(str(p) for p in (src / "Runtime").glob("*.cs"))
+    run = subprocess.run([shutil.which("mcs"), "-warnaserror+", "-warn:4", f"-out:{exe}",
+                          *sources, str(UNITY / "Conformance~" / "Harness.cs")],
+                         capture_output=True, text=True, timeout=300)
+    if run.returncode != 0:
+        raise RuntimeError(f"mcs failed:\n{run.stdout}{run.stderr}")
+    return exe
+
+
+def run_csharp(suite: Path, results: Path, *, fault: str | None = None,
+               work: Path | None = None) -> dict:
+    """Compile the C# core and its harness, run it under Mono; returns harness.json."""
+    missing = missing_tools("csharp")
+    if missing:
+        raise ToolMissing("missing: " + ", ".join(missing) + " (Debian: mono-mcs mono-runtime)")
+    with tempfile.TemporaryDirectory(prefix="gsv-csharp-") as tmp:
+        exe = build_csharp(Path(work or tmp), fault)
+        subprocess.run([shutil.which("mono"), str(exe), str(suite), str(results)], check=True,
+                       capture_output=True, text=True, timeout=600)
+    path = Path(results) / "harness.json"
+    info = json.loads(path.read_text(encoding="utf-8"))
+    info["fault"] = fault
+    path.write_text(json.dumps(info, indent=1), encoding="utf-8")
+    return info
+
+
 def run(language: str, suite: Path, results: Path, *, fault: str | None = None,
         work: Path | None = None) -> dict:
-    """Compile, build, run the kernel over every numbers-level case; returns harness.json."""
+    """Compile, build, run the kernel (or the C# core) over every numbers-level case; returns
+    what RESULTS/harness.json holds."""
     from gsverse_format.conformance.harness import run_plugin
 
+    if language == "csharp":
+        return run_csharp(suite, results, fault=fault, work=work)
     missing = missing_tools()
     if missing:
         raise ToolMissing("missing: " + ", ".join(missing))
@@ -270,12 +330,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fault", choices=sorted(FAULTS), default=None,
                    help="build a deliberately broken kernel")
     args = p.parse_args(argv)
+    if args.fault is not None and args.language not in FAULTS[args.fault][1]:
+        p.error(f"fault {args.fault} has no {args.language} variant")
     try:
         info = run(args.language, Path(args.suite), Path(args.results), fault=args.fault)
     except (ToolMissing, RuntimeError, ValueError, OSError, subprocess.CalledProcessError) as err:
         print(f"native_kernels: error: {err}", file=sys.stderr)
         return 1
-    print(f"native_kernels: {info['name']} on {info['device']} -> {args.results}")
+    where = info.get("device") or info.get("runtime")
+    print(f"native_kernels: {info['name']} on {where} -> {args.results}")
     return 0
 
 

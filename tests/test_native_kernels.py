@@ -51,45 +51,77 @@ def _failed(report) -> set[str]:
     return {c.id for c in report.cases if c.status != "pass"}
 
 
-def _kernel_report(language: str, suite: Path, out: Path, fault: str | None = None):
-    _require(native_kernels.missing_tools())
+def _report(language: str, suite: Path, out: Path, fault: str | None = None):
+    _require(native_kernels.missing_tools(language))
     info = native_kernels.run(language, suite, out, fault=fault)
-    assert info["device"].startswith("lavapipe: llvmpipe")
+    if language in native_kernels.KERNEL_LANGUAGES:
+        assert info["device"].startswith("lavapipe: llvmpipe")
+    else:
+        assert info["runtime"].startswith("Mono ")
     return check_results(suite, out, level="numbers")
 
 
+def _with_fault(fault: str) -> list[str]:
+    return sorted(native_kernels.FAULTS[fault][1])
+
+
 @pytest.mark.parametrize("language", native_kernels.LANGUAGES)
-def test_kernel_passes_every_numbers_case_on_lavapipe(language, suite, manifests, tmp_path):
-    report = _kernel_report(language, suite, tmp_path / "r")
+def test_passes_every_numbers_case(language, suite, manifests, tmp_path):
+    report = _report(language, suite, tmp_path / "r")
     assert report.ok, [(c.id, c.message) for c in report.cases if c.status != "pass"][:5]
     # every case of the numbers level ran: remap and rig cases dumped, invalid ones refused
     assert {c.id for c in report.cases} == set(manifests)
     assert {m["kind"] for m in manifests.values()} == {"remap", "rig", "invalid"}
-    assert report.harness["device"].startswith("lavapipe")
+    assert report.harness["name"]
+    if language == "csharp":     # the per-frame remap allocates no managed memory
+        assert report.harness["bytes_allocated_per_frame"] == 0
 
 
-@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
-def test_broken_kernel_frame_axis_fails_the_local_cases(language, suite, manifests, tmp_path):
-    failed = _failed(_kernel_report(language, suite, tmp_path / "r", "frame-axis"))
+@pytest.mark.parametrize("language", _with_fault("frame-axis"))
+def test_broken_frame_axis_fails_the_local_cases(language, suite, manifests, tmp_path):
+    failed = _failed(_report(language, suite, tmp_path / "r", "frame-axis"))
     local = _tagged(manifests, "profile:local")
     # the float32 covariances of the rest sliver cannot tell the axes apart (test_conformance)
     assert local - {"local-affine-rest-sliver-opened"} <= failed <= local
 
 
-@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
-def test_broken_kernel_games_axis_fails_exactly_the_games_cases(language, suite, manifests,
-                                                                 tmp_path):
-    failed = _failed(_kernel_report(language, suite, tmp_path / "r", "games-axis"))
+@pytest.mark.parametrize("language", _with_fault("games-axis"))
+def test_broken_games_axis_fails_exactly_the_games_cases(language, suite, manifests, tmp_path):
+    failed = _failed(_report(language, suite, tmp_path / "r", "games-axis"))
     assert failed == _tagged(manifests, "profile:games")
 
 
-def test_every_fault_edits_each_kernel_once(tmp_path):
-    """The broken variants are the shipped kernels with one edit (compile_kernel checks that the
-    correct text occurs exactly once) and still compile."""
-    _require(native_kernels.missing_tools())
-    for fault in native_kernels.FAULTS:
-        for language in native_kernels.LANGUAGES:
-            assert native_kernels.compile_kernel(language, tmp_path, fault).stat().st_size > 0
+def test_csharp_importer_accepting_a_zero_rotation_fails_exactly_those_invalid_cases(
+        suite, tmp_path):
+    failed = _failed(_report("csharp", suite, tmp_path / "r", "zero-rotation-accepted"))
+    assert failed == {"invalid-local-rotation-zero", "invalid-derived-zero-rest-rotation"}
+
+
+def test_every_fault_edits_its_sources_once(tmp_path):
+    """The broken variants are the shipped sources with one edit (the correct text occurs
+    exactly once) and still compile."""
+    for fault, (_, variants) in native_kernels.FAULTS.items():
+        for language in variants:
+            _require(native_kernels.missing_tools(language))
+            if language == "csharp":
+                out = native_kernels.build_csharp(tmp_path, fault)
+            else:
+                out = native_kernels.compile_kernel(language, tmp_path, fault)
+            assert out.stat().st_size > 0
+
+
+def test_csharp_core_declares_no_engine_reference():
+    """The runtime assembly is pure C#: its assembly definition declares no engine
+    references and no source names UnityEngine (it runs under Mono here)."""
+    import json
+
+    runtime = native_kernels.UNITY / "Runtime"
+    asmdef = json.loads((runtime / "Gsverse.MeshAnchor.asmdef").read_text(encoding="utf-8"))
+    assert asmdef["noEngineReferences"] is True and asmdef["references"] == []
+    sources = list(runtime.glob("*.cs"))
+    assert len(sources) >= 4
+    for path in sources:
+        assert "UnityEngine" not in path.read_text(encoding="utf-8"), path.name
 
 
 def test_unity_binding_include_compiles(tmp_path):
@@ -97,7 +129,7 @@ def test_unity_binding_include_compiles(tmp_path):
     through glslang's HLSL front-end: the core needs no Vulkan attributes."""
     import subprocess
 
-    _require(native_kernels.missing_tools())
+    _require(native_kernels.missing_tools("hlsl"))
     src = native_kernels.KERNELS / "hlsl" / "engines" / "unity.compute"
     run = subprocess.run([native_kernels.glslang(), "-D", "-V", "-S", "comp", "-e", "GsvRemap",
                           "--auto-map-bindings", str(src), "-o", str(tmp_path / "unity.spv")],
