@@ -136,3 +136,21 @@ def test_unity_binding_include_compiles(tmp_path):
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "vk::" not in (native_kernels.KERNELS / "hlsl" / "gsverse_remap_core.hlsli").read_text()
+
+
+def test_kernel_benchmark_quick_prints_right_rows():
+    """``python -m benchmarks.kernels --quick --sizes 5k`` prints one row per kernel and
+    profile, each checked against the float64 reference (timings are not checked)."""
+    import subprocess
+    import sys
+
+    _require(native_kernels.missing_tools("glsl"))
+    out = subprocess.run([sys.executable, "-m", "benchmarks.kernels", "--quick", "--sizes", "5k"],
+                         cwd=native_kernels.ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    rows = [line.split("|") for line in out.stdout.splitlines()
+            if line.startswith("| GLSL") or line.startswith("| HLSL")]
+    assert len(rows) == 2 * 3
+    for row in rows:
+        assert "lavapipe" in row[2] and row[4].strip() == "5,000"
+        assert float(row[9]) < 1e-5           # max |Δμ| against the float64 reference
