@@ -48,11 +48,13 @@ def _harness():
 
 
 def _buffers(nk, lib, mesh, anchors, profile: str) -> dict[int, np.ndarray]:
-    """Bindings 0 and 2..8 of the kernels for one workload (rest quantities in double)."""
+    """Bindings 0 and 2..8 of the kernels for one workload (rest quantities in double; the
+    covariance outputs only)."""
     n = len(anchors.face_index)
     idx = np.ascontiguousarray(mesh.faces.reshape(-1), np.uint32)
     games = profile == "games"
-    out = {0: np.array([n, 0, 1 if games else 0, 1 if profile == "local/rigid" else 0], np.uint32),
+    out = {0: np.array([n, 0, 1 if games else 0, 1 if profile == "local/rigid" else 0, 0],
+                       np.uint32),
            2: idx, 4: np.ascontiguousarray(anchors.face_index, np.uint32),
            5: np.ascontiguousarray(anchors.barycentrics, np.float32)}
     if games:

@@ -9,14 +9,15 @@ software driver lavapipe (``VK_ICD_FILENAMES`` names its ICD, so no other driver
 by the small C host ``native/kernels/vulkan/gsv_vk.c``, built here with the system C compiler
 against libvulkan. ``RESULTS/harness.json`` names the kernel, the compiler and the device.
 
-    python tests/native_kernels.py glsl|hlsl|csharp SUITE RESULTS [--fault NAME]
+    python tests/native_kernels.py glsl|hlsl|csharp SUITE RESULTS [--fault NAME] [--rotation-scale]
 
 The C# core (``plugins/unity/Runtime``: reader, refusals, rest quantities in double, CPU remap in
 float) is its own importer: ``plugins/unity/Conformance~/Harness.cs`` writes the dumps; it is
 compiled with Mono's ``mcs`` and run with ``mono``.
 
 (``scripts/native-conformance`` installs the tools, runs this and ``gsverse-conformance check``.)
-``--fault`` builds a deliberately broken kernel (:data:`FAULTS`), which the suite must catch.
+``--fault`` builds a deliberately broken kernel (:data:`FAULTS`), which the suite must catch;
+``--rotation-scale`` dumps the kernel's rotation + scale outputs instead of its covariances.
 """
 from __future__ import annotations
 
@@ -63,6 +64,12 @@ FAULTS = {
                    {"glsl": ("vec3 u = e1 - g, w = e2 - g", "vec3 u = e2 - g, w = e1 - g"),
                     "hlsl": ("float3 u = e1 - g, w = e2 - g", "float3 u = e2 - g, w = e1 - g"),
                     "csharp": ("Float3 u = e1 - g, w = e2 - g", "Float3 u = e2 - g, w = e1 - g")}),
+    # the kernels' rotation + scale outputs (--rotation-scale): eigenvalues paired with the
+    # wrong eigenvectors in the affine law's decomposition
+    "scale-order": ("the affine decomposition's scales in the order (y, x, z)",
+                    {"glsl": ("vec3(a[0][0], a[1][1], a[2][2])", "vec3(a[1][1], a[0][0], a[2][2])"),
+                     "hlsl": ("float3(a[0][0], a[1][1], a[2][2])",
+                              "float3(a[1][1], a[0][0], a[2][2])")}),
     # the C# core is its own importer: one of its refusals dropped
     "zero-rotation-accepted": ("a zero localRotation (or derived rest ROTATION) not refused",
                                {"csharp": ("if (q[4 * i] == 0 && q[4 * i + 1] == 0",
@@ -149,7 +156,7 @@ def build_host(out_dir: Path) -> ctypes.CDLL:
 
 
 class Kernel:
-    """One compiled kernel on lavapipe: its buffers (bindings 0..10 of the kernels) and
+    """One compiled kernel on lavapipe: its buffers (bindings 0..12 of the kernels) and
     dispatches."""
 
     def __init__(self, host: ctypes.CDLL, spirv: Path) -> None:
@@ -214,7 +221,8 @@ def anchor_buffers(plugin: CPlugin) -> dict[int, np.ndarray]:
     """Bindings 0, 2..8 of an imported asset (everything but the current vertices)."""
     games = plugin.profile == "games"
     n = plugin.n
-    params = np.array([n, 0, 1 if games else 0, 0 if games else plugin.law], np.uint32)
+    params = np.array([n, 0, 1 if games else 0, 0 if games else plugin.law,
+                       1 if plugin.form == "rotscale" else 0], np.uint32)
     out = {0: params, 2: plugin.indices, 4: plugin.face, 5: plugin.bary}
     if games:
         out.update({3: np.zeros(REST_STRIDE, np.float32), 6: plugin.rho,
@@ -226,10 +234,11 @@ def anchor_buffers(plugin: CPlugin) -> dict[int, np.ndarray]:
 
 
 class KernelPlugin(CPlugin):
-    """The C header's importer, the kernel's remap on lavapipe."""
+    """The C header's importer, the kernel's remap on lavapipe. ``form`` ``"rotscale"`` dumps
+    the kernel's rotation + scale outputs instead of its covariances."""
 
-    def __init__(self, lib: ctypes.CDLL, kernel: Kernel) -> None:
-        super().__init__(lib, "cov")
+    def __init__(self, lib: ctypes.CDLL, kernel: Kernel, form: str = "cov") -> None:
+        super().__init__(lib, form)
         self.kernel = kernel
 
     def load(self, asset_path: str) -> None:
@@ -239,12 +248,17 @@ class KernelPlugin(CPlugin):
         # outputs of this asset's size (the buffers are shared by the cases of a run)
         self.kernel.upload(9, np.zeros((self.n, 3), np.float32))
         self.kernel.upload(10, np.zeros((self.n, 6), np.float32))
+        self.kernel.upload(11, np.zeros((self.n, 4), np.float32))
+        self.kernel.upload(12, np.zeros((self.n, 3), np.float32))
 
     def apply_pose(self, vertices: np.ndarray) -> dict[str, np.ndarray]:
         self.kernel.upload(1, np.ascontiguousarray(vertices, np.float32))
         self.kernel.dispatch(self.n)
-        return {"means": self.kernel.download(9, (self.n, 3)),
-                "cov": self.kernel.download(10, (self.n, 6))}
+        means = self.kernel.download(9, (self.n, 3))
+        if self.form == "rotscale":
+            return {"means": means, "rotation": self.kernel.download(11, (self.n, 4)),
+                    "scale": self.kernel.download(12, (self.n, 3))}
+        return {"means": means, "cov": self.kernel.download(10, (self.n, 6))}
 
 
 def numbers_level(manifest: dict) -> bool:
@@ -292,9 +306,10 @@ def run_csharp(suite: Path, results: Path, *, fault: str | None = None,
 
 
 def run(language: str, suite: Path, results: Path, *, fault: str | None = None,
-        work: Path | None = None) -> dict:
+        work: Path | None = None, form: str = "cov") -> dict:
     """Compile, build, run the kernel (or the C# core) over every numbers-level case; returns
-    what RESULTS/harness.json holds."""
+    what RESULTS/harness.json holds. ``form`` (kernels): ``"cov"`` dumps covariances,
+    ``"rotscale"`` the kernel's rotation + scale outputs."""
     from gsverse_format.conformance.harness import run_plugin
 
     if language == "csharp":
@@ -314,8 +329,9 @@ def run(language: str, suite: Path, results: Path, *, fault: str | None = None,
                                 "front-end) to SPIR-V",
                     "device": f"lavapipe: {kernel.device}", "precision": "float32",
                     "importer": "native/gsverse_remap.h (rest quantities in double)",
-                    "fault": fault}
-            run_plugin(suite, results, lambda: KernelPlugin(lib, kernel), info=info,
+                    "fault": fault, "outputs": "rotation + scale" if form == "rotscale"
+                    else "covariance"}
+            run_plugin(suite, results, lambda: KernelPlugin(lib, kernel, form), info=info,
                        only=numbers_level)
         finally:
             kernel.close()
@@ -329,11 +345,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("results")
     p.add_argument("--fault", choices=sorted(FAULTS), default=None,
                    help="build a deliberately broken kernel")
+    p.add_argument("--rotation-scale", action="store_true",
+                   help="kernels: dump their rotation + scale outputs instead of covariances")
     args = p.parse_args(argv)
     if args.fault is not None and args.language not in FAULTS[args.fault][1]:
         p.error(f"fault {args.fault} has no {args.language} variant")
     try:
-        info = run(args.language, Path(args.suite), Path(args.results), fault=args.fault)
+        info = run(args.language, Path(args.suite), Path(args.results), fault=args.fault,
+                   form="rotscale" if args.rotation_scale else "cov")
     except (ToolMissing, RuntimeError, ValueError, OSError, subprocess.CalledProcessError) as err:
         print(f"native_kernels: error: {err}", file=sys.stderr)
         return 1

@@ -51,9 +51,10 @@ def _failed(report) -> set[str]:
     return {c.id for c in report.cases if c.status != "pass"}
 
 
-def _report(language: str, suite: Path, out: Path, fault: str | None = None):
+def _report(language: str, suite: Path, out: Path, fault: str | None = None,
+            form: str = "cov"):
     _require(native_kernels.missing_tools(language))
-    info = native_kernels.run(language, suite, out, fault=fault)
+    info = native_kernels.run(language, suite, out, fault=fault, form=form)
     if language in native_kernels.KERNEL_LANGUAGES:
         assert info["device"].startswith("lavapipe: llvmpipe")
     else:
@@ -75,6 +76,25 @@ def test_passes_every_numbers_case(language, suite, manifests, tmp_path):
     assert report.harness["name"]
     if language == "csharp":     # the per-frame remap allocates no managed memory
         assert report.harness["bytes_allocated_per_frame"] == 0
+
+
+@pytest.mark.parametrize("language", native_kernels.KERNEL_LANGUAGES)
+def test_kernel_rotation_scale_outputs_pass_every_numbers_case(language, suite, manifests,
+                                                                 tmp_path):
+    """The kernels' rotation + scale outputs (rigid and games directly, affine by Jacobi),
+    dumped instead of the covariances, pass too."""
+    report = _report(language, suite, tmp_path / "r", form="rotscale")
+    assert report.ok, [(c.id, c.message) for c in report.cases if c.status != "pass"][:5]
+    assert report.harness["outputs"] == "rotation + scale"
+    assert (tmp_path / "r" / "local-affine-bend" / "pose_000.rotation.f32").is_file()
+    assert not (tmp_path / "r" / "local-affine-bend" / "pose_000.cov.f32").exists()
+
+
+@pytest.mark.parametrize("language", _with_fault("scale-order"))
+def test_broken_decomposition_fails_exactly_the_affine_cases(language, suite, manifests,
+                                                             tmp_path):
+    failed = _failed(_report(language, suite, tmp_path / "r", "scale-order", form="rotscale"))
+    assert failed == _tagged(manifests, "deformation:affine")
 
 
 @pytest.mark.parametrize("language", _with_fault("frame-axis"))

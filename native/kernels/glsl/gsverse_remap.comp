@@ -4,8 +4,8 @@
 // One invocation per splat; the splat's face is recomputed by each of its splats (no shared
 // state, so splats need not be sorted by face; a face-sorted asset keeps the reads of a
 // workgroup on few faces). Buffers (std430, tightly packed floats/uints, set 0):
-//   0 params   uint[4]: splat count (end), first splat of this dispatch, profile (0 local,
-//                       1 games), law (0 affine, 1 rigid)
+//   0 params   uint[5]: splat count (end), first splat of this dispatch, profile (0 local,
+//                       1 games), law (0 affine, 1 rigid), rotation + scale outputs (0 or 1)
 //   1 vertices float[3V]   the current anchor-mesh vertices, splat-local space
 //   2 indices  uint[3F]    the anchor mesh's triangles (0, 1, ..., 3F-1 when not indexed)
 //   3 rest     float[8F]   per face, from gsv_prepare_rest (double, stored as float):
@@ -17,6 +17,9 @@
 //   8 scale    float[3N]   local: localScale; games: unused
 //   9 means    float[3N]   out
 //  10 cov      float[6N]   out: xx, xy, xz, yy, yz, zz
+//  11 rotations float[4N]  out when params[4] = 1: x, y, z, w (w >= 0)
+//  12 scales   float[3N]   out when params[4] = 1 (rigid and games directly; affine by a
+//                          Jacobi eigen-decomposition of the covariance, which is normative)
 #extension GL_GOOGLE_include_directive : require
 #include "gsverse_remap_core.glsl"
 
@@ -33,6 +36,8 @@ layout(std430, set = 0, binding = 7) readonly buffer Rotation { float gsv_rotati
 layout(std430, set = 0, binding = 8) readonly buffer Scale { float gsv_scale[]; };
 layout(std430, set = 0, binding = 9) writeonly buffer Means { float gsv_means[]; };
 layout(std430, set = 0, binding = 10) writeonly buffer Cov { float gsv_cov[]; };
+layout(std430, set = 0, binding = 11) writeonly buffer Rotations { float gsv_rotations[]; };
+layout(std430, set = 0, binding = 12) writeonly buffer Scales { float gsv_scales[]; };
 
 vec3 gsv_vertex(uint corner) {
     uint v = gsv_indices[corner];
@@ -47,10 +52,12 @@ void main() {
     uint f = gsv_face[i];
     vec3 v0 = gsv_vertex(3u * f), v1 = gsv_vertex(3u * f + 1u), v2 = gsv_vertex(3u * f + 2u);
     vec2 bary = vec2(gsv_bary[2u * i], gsv_bary[2u * i + 1u]);
-    vec3 mean;
+    vec3 mean, scale;
+    vec4 quat;
     float cov6[6];
+    bool rotation_scale = gsv_params[4] == 1u;
     if (gsv_params[2] == 1u) {
-        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6);
+        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6, quat, scale);
     } else {
         uint r = 8u * f;
         GsvLocalFace face = gsv_local_face(
@@ -60,7 +67,13 @@ void main() {
                       gsv_rotation[4u * i + 3u]);
         vec3 s = vec3(gsv_scale[3u * i], gsv_scale[3u * i + 1u], gsv_scale[3u * i + 2u]);
         gsv_local_splat(face, bary, gsv_offset[i], q, s, gsv_params[3] == 1u, mean, cov6);
+        if (rotation_scale)
+            gsv_local_rotation_scale(face, q, s, gsv_params[3] == 1u, quat, scale);
     }
     for (uint j = 0u; j < 3u; ++j) gsv_means[3u * i + j] = mean[j];
     for (uint j = 0u; j < 6u; ++j) gsv_cov[6u * i + j] = cov6[j];
+    if (rotation_scale) {
+        for (uint j = 0u; j < 4u; ++j) gsv_rotations[4u * i + j] = quat[j];
+        for (uint j = 0u; j < 3u; ++j) gsv_scales[3u * i + j] = scale[j];
+    }
 }

@@ -149,12 +149,101 @@ mat3 gsv_games_frame(vec3 e1, vec3 e2, out vec3 base) {
     return mat3(n, b1, b2);
 }
 
+// ---- rotation + scale outputs (for renderers that want them; the covariance is normative)
+
+const int GSV_JACOBI_SWEEPS = 6;   // cyclic sweeps, converged for 3x3 (plugins/web/src/decompose.js)
+
+// quaternion (x, y, z, w), w >= 0, of a rotation matrix: Shepperd, pivot on the largest of
+// 4x^2, 4y^2, 4z^2, 4w^2. m[c][r] is row r, column c.
+vec4 gsv_mat_to_quat(mat3 m) {
+    float m00 = m[0][0], m11 = m[1][1], m22 = m[2][2];
+    float m01 = m[1][0], m02 = m[2][0], m10 = m[0][1], m12 = m[2][1], m20 = m[0][2], m21 = m[1][2];
+    float tr = m00 + m11 + m22;
+    vec4 cand = vec4(1.0 + 2.0 * m00 - tr, 1.0 + 2.0 * m11 - tr, 1.0 + 2.0 * m22 - tr, 1.0 + tr);
+    int k = 0;
+    float best = cand.x;
+    if (cand.y > best) { k = 1; best = cand.y; }
+    if (cand.z > best) { k = 2; best = cand.z; }
+    if (cand.w > best) { k = 3; best = cand.w; }
+    float s = 2.0 * sqrt(max(best, 0.0));
+    if (!(s > 0.0)) return vec4(0.0, 0.0, 0.0, 1.0);
+    vec4 q;
+    if (k == 3) q = vec4((m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s, s / 4.0);
+    else if (k == 0) q = vec4(s / 4.0, (m01 + m10) / s, (m02 + m20) / s, (m21 - m12) / s);
+    else if (k == 1) q = vec4((m01 + m10) / s, s / 4.0, (m12 + m21) / s, (m02 - m20) / s);
+    else q = vec4((m02 + m20) / s, (m12 + m21) / s, s / 4.0, (m10 - m01) / s);
+    return (q.w < 0.0 ? -q : q) / sqrt(dot(q, q));
+}
+
+// one Jacobi rotation zeroing a[p][q] (a symmetric); v accumulates the eigenvectors (columns).
+// t = sign(theta) / (|theta| + sqrt(theta^2 + 1)): |t| <= 1, nothing cancels.
+void gsv_jacobi_rotate(inout mat3 a, inout mat3 v, int p, int q) {
+    float apq = a[q][p];
+    if (apq == 0.0) return;
+    float theta = (a[q][q] - a[p][p]) / (2.0 * apq);
+    float t = (theta >= 0.0 ? 1.0 : -1.0) / (abs(theta) + sqrt(theta * theta + 1.0));
+    float c = 1.0 / sqrt(t * t + 1.0);
+    float s = t * c;
+    // A <- J^T A J: the column update A J, then the same update of the transpose
+    vec3 cp = a[p], cq = a[q];
+    a[p] = c * cp - s * cq;
+    a[q] = s * cp + c * cq;
+    a = transpose(a);
+    cp = a[p]; cq = a[q];
+    a[p] = c * cp - s * cq;
+    a[q] = s * cp + c * cq;
+    a[q][p] = 0.0;   // annihilated exactly
+    a[p][q] = 0.0;
+    cp = v[p]; cq = v[q];   // V <- V J
+    v[p] = c * cp - s * cq;
+    v[q] = s * cp + c * cq;
+}
+
+// Sigma = R diag(scale)^2 R^T by cyclic Jacobi on Sigma / max|Sigma_ij| (no float32 overflow or
+// underflow inside the rotations); R right-handed; scales sqrt(max(lambda, 0)). The algorithm
+// of the web plugin's shader and src/decompose.js.
+void gsv_cov_to_rot_scale(mat3 sigma, out vec4 quat, out vec3 scale) {
+    vec3 m0 = abs(sigma[0]), m1 = abs(sigma[1]), m2 = abs(sigma[2]);
+    float norm = max(max(max(m0.x, m0.y), max(m0.z, m1.y)), max(m1.z, m2.z));
+    if (!(norm > 0.0)) {
+        quat = vec4(0.0, 0.0, 0.0, 1.0);
+        scale = vec3(0.0);
+        return;
+    }
+    mat3 a = sigma * (1.0 / norm);
+    mat3 v = mat3(1.0);
+    for (int sweep = 0; sweep < GSV_JACOBI_SWEEPS; ++sweep) {
+        gsv_jacobi_rotate(a, v, 0, 1);
+        gsv_jacobi_rotate(a, v, 0, 2);
+        gsv_jacobi_rotate(a, v, 1, 2);
+    }
+    if (determinant(v) < 0.0) v[2] = -v[2];
+    quat = gsv_mat_to_quat(v);
+    scale = sqrt(max(vec3(a[0][0], a[1][1], a[2][2]) * norm, vec3(0.0)));
+}
+
+// Rotation + scale of one local splat: rigid R_c R_l and k s_l directly; affine from Sigma.
+void gsv_local_rotation_scale(GsvLocalFace f, vec4 rotation, vec3 scale, bool rigid,
+                              out vec4 quat, out vec3 scale_out) {
+    mat3 rl = gsv_quat_to_matrix(rotation);
+    if (rigid) {
+        quat = gsv_mat_to_quat(f.r * rl);
+        scale_out = f.k * scale;
+    } else {
+        mat3 m = f.a_aff * mat3(rl[0] * scale.x, rl[1] * scale.y, rl[2] * scale.z);
+        gsv_cov_to_rot_scale(m * transpose(m), quat, scale_out);
+    }
+}
+
 // One splat of the games profile: mean v0 + a1 e1 + a2 e2; scale_j = max(rho s_j, 0) + eps.
+// Rotation + scale: the frame's quaternion and sc (the covariance's own factors).
 void gsv_games_splat(vec3 v0, vec3 v1, vec3 v2, vec2 bary, float rho, out vec3 mean,
-                     out float cov6[6]) {
+                     out float cov6[6], out vec4 quat, out vec3 scale) {
     vec3 e1 = v1 - v0, e2 = v2 - v0, base;
     mat3 r = gsv_games_frame(e1, e2, base);
     mean = v0 + (bary.x * e1 + bary.y * e2);
     vec3 sc = max(rho * base, vec3(0.0)) + GSV_GAMES_EPS;
     gsv_outer(mat3(r[0] * sc.x, r[1] * sc.y, r[2] * sc.z), cov6);
+    quat = gsv_mat_to_quat(r);
+    scale = sc;
 }

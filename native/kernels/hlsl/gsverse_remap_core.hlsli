@@ -152,14 +152,102 @@ float3x3 gsv_games_frame(float3 e1, float3 e2, out float3 base) {
     return gsv_columns(n, b1, b2);
 }
 
+// ---- rotation + scale outputs (for renderers that want them; the covariance is normative)
+
+static const int GSV_JACOBI_SWEEPS = 6;   // cyclic sweeps, converged for 3x3 (plugins/web/src/decompose.js)
+
+// quaternion (x, y, z, w), w >= 0, of a rotation matrix: Shepperd, pivot on the largest of
+// 4x^2, 4y^2, 4z^2, 4w^2.
+float4 gsv_mat_to_quat(float3x3 m) {
+    float m00 = m[0][0], m11 = m[1][1], m22 = m[2][2];
+    float m01 = m[0][1], m02 = m[0][2], m10 = m[1][0], m12 = m[1][2], m20 = m[2][0], m21 = m[2][1];
+    float tr = m00 + m11 + m22;
+    float4 cand = float4(1.0 + 2.0 * m00 - tr, 1.0 + 2.0 * m11 - tr, 1.0 + 2.0 * m22 - tr, 1.0 + tr);
+    int k = 0;
+    float best = cand.x;
+    if (cand.y > best) { k = 1; best = cand.y; }
+    if (cand.z > best) { k = 2; best = cand.z; }
+    if (cand.w > best) { k = 3; best = cand.w; }
+    float s = 2.0 * sqrt(max(best, 0.0));
+    if (!(s > 0.0)) return float4(0.0, 0.0, 0.0, 1.0);
+    float4 q;
+    if (k == 3) q = float4((m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s, s / 4.0);
+    else if (k == 0) q = float4(s / 4.0, (m01 + m10) / s, (m02 + m20) / s, (m21 - m12) / s);
+    else if (k == 1) q = float4((m01 + m10) / s, s / 4.0, (m12 + m21) / s, (m02 - m20) / s);
+    else q = float4((m02 + m20) / s, (m12 + m21) / s, s / 4.0, (m10 - m01) / s);
+    return (q.w < 0.0 ? -q : q) / sqrt(dot(q, q));
+}
+
+// one Jacobi rotation zeroing a[p][q] (a symmetric); w accumulates the eigenvectors as ROWS
+// (w = V^T). t = sign(theta) / (|theta| + sqrt(theta^2 + 1)): |t| <= 1, nothing cancels. The
+// GLSL kernel's column updates, as row updates: J^T A, transposed, J^T (A J).
+void gsv_jacobi_rotate(inout float3x3 a, inout float3x3 w, int p, int q) {
+    float apq = a[p][q];
+    if (apq == 0.0) return;
+    float theta = (a[q][q] - a[p][p]) / (2.0 * apq);
+    float t = (theta >= 0.0 ? 1.0 : -1.0) / (abs(theta) + sqrt(theta * theta + 1.0));
+    float c = 1.0 / sqrt(t * t + 1.0);
+    float s = t * c;
+    float3 rp = a[p], rq = a[q];
+    a[p] = c * rp - s * rq;
+    a[q] = s * rp + c * rq;
+    a = transpose(a);
+    rp = a[p]; rq = a[q];
+    a[p] = c * rp - s * rq;
+    a[q] = s * rp + c * rq;
+    a[p][q] = 0.0;   // annihilated exactly
+    a[q][p] = 0.0;
+    rp = w[p]; rq = w[q];   // V <- V J, i.e. V^T <- J^T V^T
+    w[p] = c * rp - s * rq;
+    w[q] = s * rp + c * rq;
+}
+
+// Sigma = R diag(scale)^2 R^T by cyclic Jacobi on Sigma / max|Sigma_ij|; R right-handed;
+// scales sqrt(max(lambda, 0)). The algorithm of the web plugin's shader and src/decompose.js.
+void gsv_cov_to_rot_scale(float3x3 sigma, out float4 quat, out float3 scale) {
+    float3 m0 = abs(sigma[0]), m1 = abs(sigma[1]), m2 = abs(sigma[2]);
+    float norm = max(max(max(m0.x, m0.y), max(m0.z, m1.y)), max(m1.z, m2.z));
+    if (!(norm > 0.0)) {
+        quat = float4(0.0, 0.0, 0.0, 1.0);
+        scale = float3(0.0, 0.0, 0.0);
+        return;
+    }
+    float3x3 a = sigma * (1.0 / norm);
+    float3x3 w = float3x3(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+    for (int sweep = 0; sweep < GSV_JACOBI_SWEEPS; ++sweep) {
+        gsv_jacobi_rotate(a, w, 0, 1);
+        gsv_jacobi_rotate(a, w, 0, 2);
+        gsv_jacobi_rotate(a, w, 1, 2);
+    }
+    if (determinant(w) < 0.0) w[2] = -w[2];
+    quat = gsv_mat_to_quat(transpose(w));
+    scale = sqrt(max(float3(a[0][0], a[1][1], a[2][2]) * norm, float3(0.0, 0.0, 0.0)));
+}
+
+// Rotation + scale of one local splat: rigid R_c R_l and k s_l directly; affine from Sigma.
+void gsv_local_rotation_scale(GsvLocalFace f, float4 rotation, float3 scale, bool rigid,
+                              out float4 quat, out float3 scale_out) {
+    float3x3 rl = gsv_quat_to_matrix(rotation);
+    if (rigid) {
+        quat = gsv_mat_to_quat(mul(f.r, rl));
+        scale_out = f.k * scale;
+    } else {
+        float3x3 m = mul(f.a_aff, float3x3(rl[0] * scale, rl[1] * scale, rl[2] * scale));
+        gsv_cov_to_rot_scale(mul(m, transpose(m)), quat, scale_out);
+    }
+}
+
 // One splat of the games profile: mean v0 + a1 e1 + a2 e2; scale_j = max(rho s_j, 0) + eps.
+// Rotation + scale: the frame's quaternion and sc (the covariance's own factors).
 void gsv_games_splat(float3 v0, float3 v1, float3 v2, float2 bary, float rho, out float3 mean,
-                     out float cov6[6]) {
+                     out float cov6[6], out float4 quat, out float3 scale) {
     float3 e1 = v1 - v0, e2 = v2 - v0, base;
     float3x3 r = gsv_games_frame(e1, e2, base);
     mean = v0 + (bary.x * e1 + bary.y * e2);
     float3 sc = max(rho * base, float3(0.0, 0.0, 0.0)) + GSV_GAMES_EPS;
     gsv_outer(float3x3(r[0] * sc, r[1] * sc, r[2] * sc), cov6);
+    quat = gsv_mat_to_quat(r);
+    scale = sc;
 }
 
 #endif

@@ -7,13 +7,13 @@
  *   gsv_vk *gsv_vk_open(const uint32_t *spirv, size_t bytes, char *device, size_t device_len,
  *                       char *error, size_t error_len);
  *       instance, the first physical device (VK_ICD_FILENAMES picks the driver), a compute
- *       queue, the pipeline of the kernel (11 storage buffers at set 0, bindings 0..10).
+ *       queue, the pipeline of the kernel (13 storage buffers at set 0, bindings 0..12).
  *   int gsv_vk_upload(gsv_vk *, unsigned binding, const void *data, size_t bytes);
  *       (re)fill a buffer; it grows when needed and is kept between dispatches.
  *   int gsv_vk_dispatch(gsv_vk *, uint32_t splats, uint32_t repeats, double *seconds);
  *       remap every splat `repeats` times (one submission, waited for); *seconds is the wall
  *       time of the submission and the wait. More than 65535 workgroups of 64 splats are
- *       dispatched as a 2D grid (binding 0, the kernel's params, must hold 4 uints).
+ *       dispatched as a 2D grid (binding 0, the kernel's params, must hold 5 uints).
  *   int gsv_vk_download(gsv_vk *, unsigned binding, void *data, size_t bytes);
  *   void gsv_vk_close(gsv_vk *);
  * The int functions return 0 on success, a VkResult or -1 otherwise. Memory is host visible
@@ -27,7 +27,7 @@
 #include <time.h>
 #include <vulkan/vulkan.h>
 
-#define GSV_VK_BINDINGS 11
+#define GSV_VK_BINDINGS 13
 #define GSV_VK_GROUP 64u          /* local_size_x / numthreads of the kernels */
 #define GSV_VK_MAX_GROUPS 65535u  /* maxComputeWorkGroupCount[0] every device has */
 
@@ -288,7 +288,7 @@ int gsv_vk_dispatch(gsv_vk *vk, uint32_t splats, uint32_t repeats, double *secon
     uint32_t r, groups = (splats + GSV_VK_GROUP - 1) / GSV_VK_GROUP, gx, gy;
     double t0;
     unsigned b;
-    if (!vk->buffers[0] || vk->sizes[0] < 4 * sizeof(uint32_t)) return -1;
+    if (!vk->buffers[0] || vk->sizes[0] < 5 * sizeof(uint32_t)) return -1;
     for (b = 0; b < GSV_VK_BINDINGS; ++b)
         if ((rc = (VkResult)gsv_vk__ensure(vk, b, 16)) != VK_SUCCESS) return (int)rc;
     /* a 2D grid when one row of workgroups is not enough: splat x + y * 64 * gx */

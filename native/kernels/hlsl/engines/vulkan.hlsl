@@ -1,8 +1,9 @@
-// engines/vulkan.hlsl -- the HLSL remap kernel with Vulkan bindings (set 0, bindings 0..10, the
+// engines/vulkan.hlsl -- the HLSL remap kernel with Vulkan bindings (set 0, bindings 0..12, the
 // GLSL kernel's layout), as native/kernels/vulkan/gsv_vk.c dispatches it. Compile:
 //   glslangValidator -D -V -S comp -e main engines/vulkan.hlsl -o remap.spv
 //   dxc -spirv -T cs_6_0 -E main engines/vulkan.hlsl -Fo remap.spv
-// gsv_params: splat count, first splat, profile (0 local, 1 games), law (0 affine, 1 rigid).
+// gsv_params: splat count, first splat, profile (0 local, 1 games), law (0 affine, 1 rigid),
+// rotation + scale outputs (0 or 1).
 
 [[vk::binding(0, 0)]] StructuredBuffer<uint> gsv_params;
 [[vk::binding(1, 0)]] StructuredBuffer<float> gsv_vertices;
@@ -15,6 +16,8 @@
 [[vk::binding(8, 0)]] StructuredBuffer<float> gsv_scale;
 [[vk::binding(9, 0)]] RWStructuredBuffer<float> gsv_means;
 [[vk::binding(10, 0)]] RWStructuredBuffer<float> gsv_cov;
+[[vk::binding(11, 0)]] RWStructuredBuffer<float> gsv_rotations;
+[[vk::binding(12, 0)]] RWStructuredBuffer<float> gsv_scales;
 
 #include "../gsverse_remap_kernel.hlsli"
 
@@ -25,5 +28,5 @@ static const uint GSV_ROW = 65535 * 64;
 void main(uint3 id : SV_DispatchThreadID) {
     uint i = gsv_params[1] + id.x + id.y * GSV_ROW;
     if (i >= gsv_params[0]) return;
-    gsv_remap(i, gsv_params[2], gsv_params[3]);
+    gsv_remap(i, gsv_params[2], gsv_params[3], gsv_params[4]);
 }
