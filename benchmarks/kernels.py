@@ -10,7 +10,8 @@ lavapipe, the device named in the table. One frame = upload the deformed anchor 
 dispatch every splat, wait for the fence (the outputs stay on the device; reading them back is
 not part of a frame). lavapipe runs the shader on the CPU cores (LLVM-compiled, SIMD lanes as
 invocations), so the numbers say what software Vulkan costs on this machine, not what a GPU
-costs. Timings are medians over repetitions (``benchmarks/timing.py``). The first frame's
+costs. Timings are medians over repetitions (``benchmarks/timing.py``; a full run waits up to
+20 s per row for a batch that other processes leave quiet). The first frame's
 outputs are compared with the float64 reference (max |Δμ|) so that the table is of a remap that
 is right. Prints a Markdown table; needs glslang, lavapipe and libvulkan
 (``scripts/native-conformance --install``).
@@ -104,7 +105,8 @@ def run(sizes: list[int], quick: bool = False, log=print) -> list[dict]:
                         frame()
                         ref_means, _ = remap_moments(Anchoring(mesh, anchors), verts.astype(np.float64))
                         err = float(np.max(np.abs(kernel.download(9, (n, 3)) - ref_means)))
-                        t = measure(frame, repeat=3, batches=2, warmup=1)
+                        t = measure(frame, repeat=3, batches=2, warmup=1, min_quiet=0 if quick else 1,
+                                    max_wait_s=0.0 if quick else 20.0)
                         row = {"kernel": language.upper(), "device": f"lavapipe: {kernel.device}",
                                "profile": profile, "splats": n, "faces": mesh.face_count,
                                "ms": 1e3 * t.median, "best_ms": 1e3 * t.best,

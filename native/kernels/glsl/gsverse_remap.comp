@@ -57,7 +57,9 @@ void main() {
     float cov6[6];
     bool rotation_scale = gsv_params[4] == 1u;
     if (gsv_params[2] == 1u) {
-        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6, quat, scale);
+        mat3 frame;
+        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6, frame, scale);
+        if (rotation_scale) quat = gsv_mat_to_quat(frame);
     } else {
         uint r = 8u * f;
         GsvLocalFace face = gsv_local_face(

@@ -236,14 +236,14 @@ void gsv_local_rotation_scale(GsvLocalFace f, vec4 rotation, vec3 scale, bool ri
 }
 
 // One splat of the games profile: mean v0 + a1 e1 + a2 e2; scale_j = max(rho s_j, 0) + eps.
-// Rotation + scale: the frame's quaternion and sc (the covariance's own factors).
+// Also the covariance's own factors, for rotation + scale outputs: the frame and sc.
 void gsv_games_splat(vec3 v0, vec3 v1, vec3 v2, vec2 bary, float rho, out vec3 mean,
-                     out float cov6[6], out vec4 quat, out vec3 scale) {
+                     out float cov6[6], out mat3 frame, out vec3 scale) {
     vec3 e1 = v1 - v0, e2 = v2 - v0, base;
     mat3 r = gsv_games_frame(e1, e2, base);
     mean = v0 + (bary.x * e1 + bary.y * e2);
     vec3 sc = max(rho * base, vec3(0.0)) + GSV_GAMES_EPS;
     gsv_outer(mat3(r[0] * sc.x, r[1] * sc.y, r[2] * sc.z), cov6);
-    quat = gsv_mat_to_quat(r);
+    frame = r;
     scale = sc;
 }

@@ -238,15 +238,15 @@ void gsv_local_rotation_scale(GsvLocalFace f, float4 rotation, float3 scale, boo
 }
 
 // One splat of the games profile: mean v0 + a1 e1 + a2 e2; scale_j = max(rho s_j, 0) + eps.
-// Rotation + scale: the frame's quaternion and sc (the covariance's own factors).
+// Also the covariance's own factors, for rotation + scale outputs: the frame and sc.
 void gsv_games_splat(float3 v0, float3 v1, float3 v2, float2 bary, float rho, out float3 mean,
-                     out float cov6[6], out float4 quat, out float3 scale) {
+                     out float cov6[6], out float3x3 frame, out float3 scale) {
     float3 e1 = v1 - v0, e2 = v2 - v0, base;
     float3x3 r = gsv_games_frame(e1, e2, base);
     mean = v0 + (bary.x * e1 + bary.y * e2);
     float3 sc = max(rho * base, float3(0.0, 0.0, 0.0)) + GSV_GAMES_EPS;
     gsv_outer(float3x3(r[0] * sc, r[1] * sc, r[2] * sc), cov6);
-    quat = gsv_mat_to_quat(r);
+    frame = r;
     scale = sc;
 }
 

@@ -35,7 +35,9 @@ void gsv_remap(uint i, uint profile, uint law, uint rotation_scale) {
     float4 quat = float4(0.0, 0.0, 0.0, 1.0);
     float cov6[6];
     if (profile == 1) {
-        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6, quat, scale);
+        float3x3 frame;
+        gsv_games_splat(v0, v1, v2, bary, gsv_offset[i], mean, cov6, frame, scale);
+        if (rotation_scale == 1) quat = gsv_mat_to_quat(frame);
     } else {
         uint r = 8 * f;
         GsvLocalFace face = gsv_local_face(
