@@ -163,14 +163,24 @@ class Kernel:
         icd = lavapipe_icd()
         if icd is None:
             raise ToolMissing("lavapipe is not installed (Debian: mesa-vulkan-drivers)")
-        # the loader reads these when the instance is created: lavapipe and nothing else
-        os.environ["VK_ICD_FILENAMES"] = icd
-        os.environ["VK_DRIVER_FILES"] = icd
         code = np.frombuffer(Path(spirv).read_bytes(), np.uint32).copy()
         device, error = ctypes.create_string_buffer(256), ctypes.create_string_buffer(256)
         self.host = host
-        self._code = code
-        self.handle = host.gsv_vk_open(code.ctypes.data, code.nbytes, device, 256, error, 256)
+        # the loader reads these when the instance is created: lavapipe and nothing else; put
+        # back afterwards, so that processes started later (a browser) see the environment
+        # they had
+        names = ("VK_ICD_FILENAMES", "VK_DRIVER_FILES")
+        saved = {name: os.environ.get(name) for name in names}
+        os.environ.update({name: icd for name in names})
+        try:
+            self.handle = host.gsv_vk_open(code.ctypes.data, code.nbytes, device, 256, error,
+                                           256)
+        finally:
+            for name, value in saved.items():
+                if value is None:
+                    os.environ.pop(name, None)
+                else:
+                    os.environ[name] = value
         if not self.handle:
             raise RuntimeError(f"Vulkan: {error.value.decode()}")
         self.device = device.value.decode()
