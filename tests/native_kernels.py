@@ -17,7 +17,7 @@ compiled with Mono's ``mcs`` and run with ``mono``.
 
 (``scripts/native-conformance`` installs the tools, runs this and ``gsverse-conformance check``.)
 ``--fault`` builds a deliberately broken kernel (:data:`FAULTS`), which the suite must catch;
-``--rotation-scale`` dumps the kernel's rotation + scale outputs instead of its covariances.
+``--rotation-scale`` dumps the rotation + scale outputs instead of the covariances.
 """
 from __future__ import annotations
 
@@ -64,12 +64,16 @@ FAULTS = {
                    {"glsl": ("vec3 u = e1 - g, w = e2 - g", "vec3 u = e2 - g, w = e1 - g"),
                     "hlsl": ("float3 u = e1 - g, w = e2 - g", "float3 u = e2 - g, w = e1 - g"),
                     "csharp": ("Float3 u = e1 - g, w = e2 - g", "Float3 u = e2 - g, w = e1 - g")}),
-    # the kernels' rotation + scale outputs (--rotation-scale): eigenvalues paired with the
+    # the rotation + scale outputs (--rotation-scale): eigenvalues paired with the
     # wrong eigenvectors in the affine law's decomposition
     "scale-order": ("the affine decomposition's scales in the order (y, x, z)",
                     {"glsl": ("vec3(a[0][0], a[1][1], a[2][2])", "vec3(a[1][1], a[0][0], a[2][2])"),
                      "hlsl": ("float3(a[0][0], a[1][1], a[2][2])",
-                              "float3(a[1][1], a[0][0], a[2][2])")}),
+                              "float3(a[1][1], a[0][0], a[2][2])"),
+                     "csharp": ("scale = new Float3(Sqrt(Math.Max(a.C0.X * norm, 0f)), "
+                                "Sqrt(Math.Max(a.C1.Y * norm, 0f)),",
+                                "scale = new Float3(Sqrt(Math.Max(a.C1.Y * norm, 0f)), "
+                                "Sqrt(Math.Max(a.C0.X * norm, 0f)),")}),
     # the C# core is its own importer: one of its refusals dropped
     "zero-rotation-accepted": ("a zero localRotation (or derived rest ROTATION) not refused",
                                {"csharp": ("if (q[4 * i] == 0 && q[4 * i + 1] == 0",
@@ -299,15 +303,16 @@ def build_csharp(out_dir: Path, fault: str | None = None) -> Path:
 
 
 def run_csharp(suite: Path, results: Path, *, fault: str | None = None,
-               work: Path | None = None) -> dict:
+               work: Path | None = None, form: str = "cov") -> dict:
     """Compile the C# core and its harness, run it under Mono; returns harness.json."""
     missing = missing_tools("csharp")
     if missing:
         raise ToolMissing("missing: " + ", ".join(missing) + " (Debian: mono-mcs mono-runtime)")
     with tempfile.TemporaryDirectory(prefix="gsv-csharp-") as tmp:
         exe = build_csharp(Path(work or tmp), fault)
-        subprocess.run([shutil.which("mono"), str(exe), str(suite), str(results)], check=True,
-                       capture_output=True, text=True, timeout=600)
+        extra = ["--rotation-scale"] if form == "rotscale" else []
+        subprocess.run([shutil.which("mono"), str(exe), str(suite), str(results), *extra],
+                       check=True, capture_output=True, text=True, timeout=600)
     path = Path(results) / "harness.json"
     info = json.loads(path.read_text(encoding="utf-8"))
     info["fault"] = fault
@@ -318,12 +323,12 @@ def run_csharp(suite: Path, results: Path, *, fault: str | None = None,
 def run(language: str, suite: Path, results: Path, *, fault: str | None = None,
         work: Path | None = None, form: str = "cov") -> dict:
     """Compile, build, run the kernel (or the C# core) over every numbers-level case; returns
-    what RESULTS/harness.json holds. ``form`` (kernels): ``"cov"`` dumps covariances,
-    ``"rotscale"`` the kernel's rotation + scale outputs."""
+    what RESULTS/harness.json holds. ``form``: ``"cov"`` dumps covariances, ``"rotscale"``
+    the rotation + scale outputs."""
     from gsverse_format.conformance.harness import run_plugin
 
     if language == "csharp":
-        return run_csharp(suite, results, fault=fault, work=work)
+        return run_csharp(suite, results, fault=fault, work=work, form=form)
     missing = missing_tools()
     if missing:
         raise ToolMissing("missing: " + ", ".join(missing))
@@ -356,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--fault", choices=sorted(FAULTS), default=None,
                    help="build a deliberately broken kernel")
     p.add_argument("--rotation-scale", action="store_true",
-                   help="kernels: dump their rotation + scale outputs instead of covariances")
+                   help="dump the rotation + scale outputs instead of covariances")
     args = p.parse_args(argv)
     if args.fault is not None and args.language not in FAULTS[args.fault][1]:
         p.error(f"fault {args.fault} has no {args.language} variant")

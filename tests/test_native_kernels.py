@@ -78,11 +78,10 @@ def test_passes_every_numbers_case(language, suite, manifests, tmp_path):
         assert report.harness["bytes_allocated_per_frame"] == 0
 
 
-@pytest.mark.parametrize("language", native_kernels.KERNEL_LANGUAGES)
-def test_kernel_rotation_scale_outputs_pass_every_numbers_case(language, suite, manifests,
-                                                                 tmp_path):
-    """The kernels' rotation + scale outputs (rigid and games directly, affine by Jacobi),
-    dumped instead of the covariances, pass too."""
+@pytest.mark.parametrize("language", native_kernels.LANGUAGES)
+def test_rotation_scale_outputs_pass_every_numbers_case(language, suite, manifests, tmp_path):
+    """The rotation + scale outputs of the kernels and of the C# core (rigid and games
+    directly, affine by Jacobi), dumped instead of the covariances, pass too."""
     report = _report(language, suite, tmp_path / "r", form="rotscale")
     assert report.ok, [(c.id, c.message) for c in report.cases if c.status != "pass"][:5]
     assert report.harness["outputs"] == "rotation + scale"

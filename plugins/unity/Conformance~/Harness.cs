@@ -3,7 +3,7 @@
 // `refused`), dump the rest pose, remap every pose with Remapper and dump means and
 // covariances, then the opacity and SH after the last pose. Not part of the Unity package
 // (a folder ending in ~ is ignored by Unity). Build and run (tests/csharp_core.py does):
-//   mcs -out:harness.exe ../Runtime/*.cs Harness.cs && mono harness.exe SUITE RESULTS
+//   mcs -out:harness.exe ../Runtime/*.cs Harness.cs && mono harness.exe SUITE RESULTS [--rotation-scale]
 using System;
 using System.Collections.Generic;
 using System.IO;
@@ -43,6 +43,9 @@ static class Harness
         return name == null ? "CLR " + Environment.Version : "Mono " + name.Invoke(null, null);
     }
 
+    /// <summary>--rotation-scale: dump Remapper's rotations and scales instead of covariances.</summary>
+    static bool rotationScale;
+
     static void RunCase(string folder, Dictionary<string, object> manifest, string output)
     {
         var files = Glb.Obj(manifest["files"]);
@@ -60,7 +63,7 @@ static class Harness
         Dump(output, "rest.cov", Remapper.RestCovariances(asset));
         Dump(output, "rest.opacity", asset.Opacity);
         Dump(output, "rest.sh", asset.Sh);
-        var remapper = new Remapper(asset);
+        var remapper = new Remapper(asset, rotationScale);
         bool rig = "rig".Equals(manifest["kind"]);
         var poses = Glb.List(files, rig ? "deformed" : "poses");
         var vertices = new float[asset.AnchorVertices.Length];
@@ -80,7 +83,12 @@ static class Harness
             remapper.Apply(vertices);
             string stem = "pose_" + p.ToString("D3");
             Dump(output, stem + ".means", remapper.Means);
-            Dump(output, stem + ".cov", remapper.Cov);
+            if (rotationScale)
+            {
+                Dump(output, stem + ".rotation", remapper.Rotations);
+                Dump(output, stem + ".scale", remapper.Scales);
+            }
+            else Dump(output, stem + ".cov", remapper.Cov);
         }
         if (poses.Count > 0)
         {
@@ -95,9 +103,10 @@ static class Harness
 
     static int Main(string[] args)
     {
-        if (args.Length != 2)
+        rotationScale = args.Length == 3 && args[2] == "--rotation-scale";
+        if (args.Length != 2 && !rotationScale)
         {
-            Console.Error.WriteLine("usage: mono harness.exe SUITE RESULTS");
+            Console.Error.WriteLine("usage: mono harness.exe SUITE RESULTS [--rotation-scale]");
             return 2;
         }
         string suite = args[0], results = args[1];
@@ -124,7 +133,8 @@ static class Harness
         }
         File.WriteAllText(Path.Combine(results, "harness.json"),
             "{\n \"name\": \"gsverse C# core (plugins/unity/Runtime)\",\n \"runtime\": \"" + Runtime().Replace("\"", "'")
-            + "\",\n \"precision\": \"float32 (rest quantities in double)\",\n \"bytes_allocated_per_frame\": "
+            + "\",\n \"precision\": \"float32 (rest quantities in double)\",\n \"outputs\": \""
+            + (rotationScale ? "rotation + scale" : "covariance") + "\",\n \"bytes_allocated_per_frame\": "
             + frameAllocations + "\n}\n");
         Console.WriteLine("gsverse C# core: " + count + " cases -> " + results);
         return 0;

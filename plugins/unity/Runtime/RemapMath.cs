@@ -23,6 +23,16 @@ namespace Gsverse.MeshAnchor
             return new Float3(a.Y * b.Z - a.Z * b.Y, a.Z * b.X - a.X * b.Z, a.X * b.Y - a.Y * b.X);
         }
         public float this[int i] { get { return i == 0 ? X : i == 1 ? Y : Z; } }
+        /// <summary>A copy with component i set to v.</summary>
+        public Float3 With(int i, float v) { return new Float3(i == 0 ? v : X, i == 1 ? v : Y, i == 2 ? v : Z); }
+        public static Float3 Abs(Float3 a) { return new Float3(Math.Abs(a.X), Math.Abs(a.Y), Math.Abs(a.Z)); }
+    }
+
+    /// <summary>A quaternion x, y, z, w.</summary>
+    public struct Quat
+    {
+        public float X, Y, Z, W;
+        public Quat(float x, float y, float z, float w) { X = x; Y = y; Z = z; W = w; }
     }
 
     /// <summary>A 3x3 matrix by its columns.</summary>
@@ -35,6 +45,14 @@ namespace Gsverse.MeshAnchor
         public static Float3 operator *(Mat3 m, Float3 v) { return m.C0 * v.X + m.C1 * v.Y + m.C2 * v.Z; }
         public static Mat3 operator *(Mat3 a, Mat3 b) { return new Mat3(a * b.C0, a * b.C1, a * b.C2); }
         public static Mat3 operator *(float s, Mat3 m) { return new Mat3(s * m.C0, s * m.C1, s * m.C2); }
+        /// <summary>Column c.</summary>
+        public Float3 this[int c]
+        {
+            get { return c == 0 ? C0 : c == 1 ? C1 : C2; }
+            set { if (c == 0) C0 = value; else if (c == 1) C1 = value; else C2 = value; }
+        }
+        public Mat3 Transpose() { return new Mat3(Row(0), Row(1), Row(2)); }
+        public float Determinant() { return Float3.Dot(C0, Float3.Cross(C1, C2)); }
     }
 
     /// <summary>Rest data of one face, local profile: computed in double by AnchoredAsset,
@@ -149,6 +167,84 @@ namespace Gsverse.MeshAnchor
             cov[6 * i] = Float3.Dot(r0, r0); cov[6 * i + 1] = Float3.Dot(r0, r1);
             cov[6 * i + 2] = Float3.Dot(r0, r2); cov[6 * i + 3] = Float3.Dot(r1, r1);
             cov[6 * i + 4] = Float3.Dot(r1, r2); cov[6 * i + 5] = Float3.Dot(r2, r2);
+        }
+
+        // ---- rotation + scale outputs (the covariance is normative)
+
+        public const int JacobiSweeps = 6;   // cyclic sweeps, converged for 3x3 (plugins/web/src/decompose.js)
+
+        /// <summary>Quaternion (x, y, z, w; w >= 0) of a rotation matrix: Shepperd, pivot on
+        /// the largest of 4x^2, 4y^2, 4z^2, 4w^2.</summary>
+        public static Quat MatToQuat(Mat3 m)
+        {
+            float m00 = m.C0.X, m11 = m.C1.Y, m22 = m.C2.Z;
+            float m01 = m.C1.X, m02 = m.C2.X, m10 = m.C0.Y, m12 = m.C2.Y, m20 = m.C0.Z, m21 = m.C1.Z;
+            float tr = m00 + m11 + m22;
+            float c0 = 1 + 2 * m00 - tr, c1 = 1 + 2 * m11 - tr, c2 = 1 + 2 * m22 - tr, c3 = 1 + tr;
+            int k = 0;
+            float best = c0;
+            if (c1 > best) { k = 1; best = c1; }
+            if (c2 > best) { k = 2; best = c2; }
+            if (c3 > best) { k = 3; best = c3; }
+            float s = 2 * Sqrt(Math.Max(best, 0f));
+            if (!(s > 0)) return new Quat(0, 0, 0, 1);
+            Quat q;
+            if (k == 3) q = new Quat((m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s, s / 4);
+            else if (k == 0) q = new Quat(s / 4, (m01 + m10) / s, (m02 + m20) / s, (m21 - m12) / s);
+            else if (k == 1) q = new Quat((m01 + m10) / s, s / 4, (m12 + m21) / s, (m02 - m20) / s);
+            else q = new Quat((m02 + m20) / s, (m12 + m21) / s, s / 4, (m10 - m01) / s);
+            float len = Sqrt(q.X * q.X + q.Y * q.Y + q.Z * q.Z + q.W * q.W);
+            if (q.W < 0) len = -len;
+            return new Quat(q.X / len, q.Y / len, q.Z / len, q.W / len);
+        }
+
+        /// <summary>One Jacobi rotation zeroing a(p, q) of a symmetric a; v accumulates the
+        /// eigenvectors (columns). t = sign(theta) / (|theta| + sqrt(theta^2 + 1)): |t| <= 1.</summary>
+        static void JacobiRotate(ref Mat3 a, ref Mat3 v, int p, int q)
+        {
+            float apq = a[q][p];
+            if (apq == 0) return;
+            float theta = (a[q][q] - a[p][p]) / (2 * apq);
+            float t = (theta >= 0 ? 1f : -1f) / (Math.Abs(theta) + Sqrt(theta * theta + 1));
+            float c = 1 / Sqrt(t * t + 1), s = t * c;
+            // A <- J^T A J: the column update A J, then the same update of the transpose
+            Float3 cp = a[p], cq = a[q];
+            a[p] = c * cp - s * cq;
+            a[q] = s * cp + c * cq;
+            a = a.Transpose();
+            cp = a[p]; cq = a[q];
+            a[p] = c * cp - s * cq;
+            a[q] = s * cp + c * cq;
+            a[q] = a[q].With(p, 0);   // annihilated exactly
+            a[p] = a[p].With(q, 0);
+            cp = v[p]; cq = v[q];     // V <- V J
+            v[p] = c * cp - s * cq;
+            v[q] = s * cp + c * cq;
+        }
+
+        /// <summary>Sigma = R diag(scale)^2 R^T by cyclic Jacobi on Sigma / max|Sigma_ij|; R
+        /// right-handed; scales sqrt(max(lambda, 0)). The kernels' and the web plugin's algorithm.</summary>
+        public static void CovToRotScale(Mat3 sigma, out Quat quat, out Float3 scale)
+        {
+            Float3 m0 = Float3.Abs(sigma.C0), m1 = Float3.Abs(sigma.C1), m2 = Float3.Abs(sigma.C2);
+            float norm = Math.Max(Math.Max(Math.Max(m0.X, m0.Y), Math.Max(m0.Z, m1.Y)), Math.Max(m1.Z, m2.Z));
+            if (!(norm > 0))
+            {
+                quat = new Quat(0, 0, 0, 1);
+                scale = new Float3(0, 0, 0);
+                return;
+            }
+            Mat3 a = (1 / norm) * sigma, v = Mat3.Identity;
+            for (int sweep = 0; sweep < JacobiSweeps; ++sweep)
+            {
+                JacobiRotate(ref a, ref v, 0, 1);
+                JacobiRotate(ref a, ref v, 0, 2);
+                JacobiRotate(ref a, ref v, 1, 2);
+            }
+            if (v.Determinant() < 0) v.C2 = -1f * v.C2;
+            quat = MatToQuat(v);
+            scale = new Float3(Sqrt(Math.Max(a.C0.X * norm, 0f)), Sqrt(Math.Max(a.C1.Y * norm, 0f)),
+                               Sqrt(Math.Max(a.C2.Z * norm, 0f)));
         }
 
         /// <summary>The games frame [n | b1 | b2] and base scales (spec Remap: the games

@@ -13,14 +13,29 @@ namespace Gsverse.MeshAnchor
         readonly GamesFace[] games;
         /// <summary>Outputs of the last Apply: means (3N) and covariances (6N: xx, xy, xz, yy, yz, zz).</summary>
         public readonly float[] Means, Cov;
+        /// <summary>With rotationScale: rotations (4N: x, y, z, w; w >= 0) and scales (3N), for
+        /// renderers that store splats that way (rigid and games directly, affine by a Jacobi
+        /// eigen-decomposition of the covariance, which is normative); else null.</summary>
+        public readonly float[] Rotations, Scales;
 
-        public Remapper(AnchoredAsset asset)
+        public Remapper(AnchoredAsset asset, bool rotationScale = false)
         {
             this.asset = asset;
             if (asset.Games) games = new GamesFace[asset.FaceCount];
             else local = new LocalFace[asset.FaceCount];
             Means = new float[3 * asset.Count];
             Cov = new float[6 * asset.Count];
+            if (rotationScale)
+            {
+                Rotations = new float[4 * asset.Count];
+                Scales = new float[3 * asset.Count];
+            }
+        }
+
+        void Store(int i, Quat q, Float3 s)
+        {
+            Rotations[4 * i] = q.X; Rotations[4 * i + 1] = q.Y; Rotations[4 * i + 2] = q.Z; Rotations[4 * i + 3] = q.W;
+            Scales[3 * i] = s.X; Scales[3 * i + 1] = s.Y; Scales[3 * i + 2] = s.Z;
         }
 
         static Float3 Vertex(float[] v, uint i) { return new Float3(v[3 * i], v[3 * i + 1], v[3 * i + 2]); }
@@ -56,7 +71,18 @@ namespace Gsverse.MeshAnchor
             Mat3 rl = RemapMath.QuatToMatrix(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
             var l = new Mat3(rl.C0 * s[3 * i], rl.C1 * s[3 * i + 1], rl.C2 * s[3 * i + 2]);   // R_l S_l
             Mat3 a = asset.Rigid ? f.K * f.R : f.AAff;                                     // A
-            RemapMath.Outer(a * l, Cov, i);                                                // Sigma = (A L)(A L)^T
+            Mat3 m = a * l;
+            RemapMath.Outer(m, Cov, i);                                                    // Sigma = (A L)(A L)^T
+            if (Rotations == null) return;
+            if (asset.Rigid)                                                               // R_c R_l, k s_l
+                Store(i, RemapMath.MatToQuat(f.R * rl), new Float3(f.K * s[3 * i], f.K * s[3 * i + 1], f.K * s[3 * i + 2]));
+            else
+            {
+                Quat quat;
+                Float3 sc;
+                RemapMath.CovToRotScale(m * m.Transpose(), out quat, out sc);
+                Store(i, quat, sc);
+            }
         }
 
         void GamesSplat(int i)
@@ -70,6 +96,7 @@ namespace Gsverse.MeshAnchor
             float s1 = Math.Max(rho * f.Base.Y, 0f) + RemapMath.GamesEps;
             float s2 = Math.Max(rho * f.Base.Z, 0f) + RemapMath.GamesEps;
             RemapMath.Outer(new Mat3(f.R.C0 * s0, f.R.C1 * s1, f.R.C2 * s2), Cov, i);
+            if (Rotations != null) Store(i, RemapMath.MatToQuat(f.R), new Float3(s0, s1, s2));
         }
 
         /// <summary>The rest covariance of every splat from the rest ROTATION (normalized) and
