@@ -53,7 +53,8 @@ _SOURCES = {
              ["-D", "-V", "-S", "comp", "-e", "main"]),
 }
 
-#: deliberately broken kernels: (what is wrong, {language: (correct text, broken text)})
+#: deliberately broken variants of the kernels and the C# core: (what is wrong, {language:
+#: (correct text, broken text)}), the correct text occurring exactly once in the sources
 FAULTS = {
     "frame-axis": ("the local profile's normal taken as e2 x e1 (a wrong frame axis)",
                    {"glsl": ("\n    cr = cross(e1, e2);", "\n    cr = cross(e2, e1);"),
@@ -85,7 +86,7 @@ REST_STRIDE = 8
 
 
 class ToolMissing(RuntimeError):
-    """glslang, libvulkan or lavapipe is not installed."""
+    """glslang, libvulkan, lavapipe or Mono is not installed."""
 
 
 def glslang() -> str | None:
@@ -105,7 +106,8 @@ def missing_tools(language: str = "glsl") -> list[str]:
     """What the harness of ``language`` needs and does not find (empty when it can run)."""
     out = []
     if language == "csharp":
-        return [tool for tool, package in (("mcs", "mono-mcs"), ("mono", "mono-runtime"))
+        return [f"{tool} (Debian: {package})"
+                for tool, package in (("mcs", "mono-mcs"), ("mono", "mono-runtime"))
                 if shutil.which(tool) is None]
     if glslang() is None:
         out.append("glslangValidator (Debian: glslang-tools)")
@@ -307,12 +309,15 @@ def run_csharp(suite: Path, results: Path, *, fault: str | None = None,
     """Compile the C# core and its harness, run it under Mono; returns harness.json."""
     missing = missing_tools("csharp")
     if missing:
-        raise ToolMissing("missing: " + ", ".join(missing) + " (Debian: mono-mcs mono-runtime)")
+        raise ToolMissing("missing: " + ", ".join(missing))
     with tempfile.TemporaryDirectory(prefix="gsv-csharp-") as tmp:
         exe = build_csharp(Path(work or tmp), fault)
         extra = ["--rotation-scale"] if form == "rotscale" else []
-        subprocess.run([shutil.which("mono"), str(exe), str(suite), str(results), *extra],
-                       check=True, capture_output=True, text=True, timeout=600)
+        done = subprocess.run([shutil.which("mono"), str(exe), str(suite), str(results), *extra],
+                              capture_output=True, text=True, timeout=600)
+        if done.returncode != 0:
+            raise RuntimeError(f"the C# harness failed (exit {done.returncode}): "
+                               f"{(done.stderr or done.stdout).strip()}")
     path = Path(results) / "harness.json"
     info = json.loads(path.read_text(encoding="utf-8"))
     info["fault"] = fault

@@ -109,7 +109,22 @@ static class Harness
             Console.Error.WriteLine("usage: mono harness.exe SUITE RESULTS [--rotation-scale]");
             return 2;
         }
-        string suite = args[0], results = args[1];
+        try
+        {
+            return Run(args[0], args[1]);
+        }
+        catch (Exception e) when (e is IOException || e is UnauthorizedAccessException || e is FormatException
+                                  || e is InvalidCastException || e is KeyNotFoundException)
+        {
+            // a missing or unreadable suite: one line, no trace (each case's own failures are
+            // recorded in its folder by Run)
+            Console.Error.WriteLine("harness: error: " + e.Message);
+            return 1;
+        }
+    }
+
+    static int Run(string suite, string results)
+    {
         Directory.CreateDirectory(results);
         int count = 0;
         foreach (object entry in Glb.List(ReadJson(Path.Combine(suite, "suite.json")), "cases"))
