@@ -173,3 +173,23 @@ def test_kernel_benchmark_quick_prints_right_rows():
     for row in rows:
         assert "lavapipe" in row[2] and row[4].strip() == "5,000"
         assert float(row[9]) < 1e-5           # max |Δμ| against the float64 reference
+
+
+def test_native_conformance_script_exit_status(suite, tmp_path):
+    """``scripts/native-conformance`` runs the harness and the check: exit 0 when every case
+    passes, 1 when a broken variant fails some (nothing to install: the tools are here)."""
+    import subprocess
+    import sys
+
+    _require(native_kernels.missing_tools("csharp") + native_kernels.missing_tools("glsl"))
+    script = native_kernels.ROOT / "scripts" / "native-conformance"
+    env = dict(os.environ, PATH=os.pathsep.join([str(Path(sys.executable).parent),
+                                                 os.environ.get("PATH", "")]))
+    good = subprocess.run([str(script), "csharp", str(suite), str(tmp_path / "good")],
+                          capture_output=True, text=True, timeout=600, env=env)
+    assert good.returncode == 0, good.stdout + good.stderr
+    assert f"{len(suite_cases(suite))} passed, 0 failed" in good.stdout
+    bad = subprocess.run([str(script), "glsl", str(suite), str(tmp_path / "bad"), "--fault",
+                          "games-axis"], capture_output=True, text=True, timeout=600, env=env)
+    assert bad.returncode == 1, bad.stdout + bad.stderr
+    assert "FAIL    games-bend" in bad.stdout
