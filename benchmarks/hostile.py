@@ -414,9 +414,10 @@ CASES: list[tuple[str, Callable[[str, bool], str], str, tuple[str, ...]]] = [
      "stop signals end native calls", ("sigterm-mesh",)),
 ]
 
-#: seconds after the start at which the SIGTERM rows send the signal (inside the step named,
-#: on a 2-core machine: reading and normals take ~3 s, the step itself 10-40 s)
-SIGTERM_AFTER_S = 6.0
+#: seconds after the start at which the SIGTERM rows send the signal, quick and full sizes
+#: (inside the step named on a 2-core machine: reading, normals or OBJ parsing take 3-10 s,
+#: the step itself 10-40 s)
+SIGTERM_AFTER_S = {True: 6.0, False: 14.0}
 
 
 def _commands(tool: str, path: str, folder: str, quick: bool) -> list[str]:
@@ -510,7 +511,7 @@ def run(quick: bool, log: Callable[[str], None] = print) -> list[dict]:
                 cmd = _commands(tool, path, folder, quick)
                 log(f"{name}: {os.path.basename(cmd[0])} {os.path.basename(path)}")
                 if tool.startswith("sigterm"):
-                    res = _terminated(cmd, SIGTERM_AFTER_S)
+                    res = _terminated(cmd, SIGTERM_AFTER_S[quick])
                     outcome = (f"exit {res['rc']} {res['signal_to_exit_s']:.2f} s after the "
                                f"signal" if res["signalled"] else
                                f"finished before the signal: {_outcome(res)}")
