@@ -34,7 +34,8 @@ from .errors import OutputError, UsageError
 
 __all__ = ["atomic_write", "temporary_folder", "check_target", "file_mode", "is_temporary",
            "sweep_stale", "discard_temporaries", "interruptions_deferred",
-           "interruptions_immediate", "outputs_written",
+           "interruptions_immediate", "stop_signals_end_native_calls",
+           "set_stop_signals_end_native_calls", "outputs_written",
            "output_error", "make_folder",
            "TEMP_MARK", "STALE_AFTER_S"]
 
@@ -441,6 +442,32 @@ def interruptions_deferred() -> Iterator[None]:
             signal.raise_signal(signum)
 
 
+#: Whether :func:`interruptions_immediate` may end the process (set by the command-line
+#: tools' boundary and in batch workers, :func:`stop_signals_end_native_calls`): in a
+#: library caller's process, an interactive session above all, a stop signal must never end
+#: the interpreter.
+_END_PROCESS: list[bool] = [False]
+
+
+def set_stop_signals_end_native_calls(enabled: bool) -> bool:
+    """Whether :func:`interruptions_immediate` ends the process on a stop signal from now on
+    (a batch worker sets it for its life); returns the previous setting."""
+    previous = _END_PROCESS[0]
+    _END_PROCESS[0] = bool(enabled)
+    return previous
+
+
+@contextlib.contextmanager
+def stop_signals_end_native_calls() -> Iterator[None]:
+    """While inside, :func:`interruptions_immediate` ends the process on a stop signal (a
+    command-line tool's run: a process of this package's own)."""
+    previous = set_stop_signals_end_native_calls(True)
+    try:
+        yield
+    finally:
+        set_stop_signals_end_native_calls(previous)
+
+
 @contextlib.contextmanager
 def interruptions_immediate() -> Iterator[None]:
     """While inside, SIGINT, SIGTERM and SIGHUP end the process at once, by the system's
@@ -457,7 +484,15 @@ def interruptions_immediate() -> Iterator[None]:
     (:func:`sweep_stale`). Signals received before the block have their handlers run first;
     those received on leaving are handled by the handlers put back. Main thread only, and
     only signals with Python handlers; the others (ignored, default) are left as they are.
-    Without POSIX signal masks (Windows) nothing changes."""
+    Without POSIX signal masks (Windows) nothing changes.
+
+    Only in the package's own processes (:func:`stop_signals_end_native_calls`); in a library
+    caller's process the block defers the signals instead (:func:`interruptions_deferred`:
+    the ``KeyboardInterrupt`` of Ctrl-C comes out of the ``with`` once the call returns)."""
+    if not _END_PROCESS[0]:
+        with interruptions_deferred():
+            yield
+        return
     if (threading.current_thread() is not threading.main_thread()
             or not hasattr(signal, "pthread_sigmask")):
         yield

@@ -18,7 +18,7 @@ import warnings
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .atomic import WRITE_ERRNOS, sweep_dead
+from .atomic import WRITE_ERRNOS, set_stop_signals_end_native_calls, sweep_dead
 from .errors import GsverseError, UsageError
 from .pipeline import ConvertOptions, convert
 from .progress import Progress, silenced_warnings
@@ -106,11 +106,13 @@ def _raise_exit(signum: int, frame: Any) -> None:  # pragma: no cover - runs in 
 def _init_worker(numba_threads: int, quiet: bool) -> None:  # pragma: no cover - in a worker
     """A local worker: Ctrl-C and SIGHUP (sent to the whole terminal's process group) are the
     parent's to handle, which stops the workers with SIGTERM; SIGTERM unwinds (an atomic write
-    in progress removes its temporary file); numba threads shared out among the workers."""
+    in progress removes its temporary file), or inside a long native call ends the worker at
+    once (``atomic.interruptions_immediate``); numba threads shared out among the workers."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if hasattr(signal, "SIGHUP"):
         signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_exit)
+    set_stop_signals_end_native_calls(True)   # inside long native calls: see atomic
     if "numba" not in sys.modules:
         os.environ.setdefault("NUMBA_NUM_THREADS", str(numba_threads))
     if quiet:

@@ -194,3 +194,23 @@ def test_sigterm_while_trimesh_reads_a_mesh_ends_the_process(tmp_path):
         def call():
             read_mesh({str(obj)!r})
         """) + _WATCH))
+
+
+def test_a_library_caller_gets_its_keyboard_interrupt_after_the_call():
+    # Outside the command-line tools (an interactive session calling the package), a stop
+    # signal must not end the interpreter: the block defers it to its end instead.
+    proc = _run_child(textwrap.dedent("""
+        import os, signal
+        from gsverse_format.atomic import interruptions_immediate
+
+        try:
+            with interruptions_immediate():
+                assert signal.getsignal(signal.SIGINT) is not signal.SIG_DFL
+                os.kill(os.getpid(), signal.SIGINT)
+                print("inside after the signal")
+        except KeyboardInterrupt:
+            print("KeyboardInterrupt after the block")
+        """))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == ["inside after the signal",
+                                        "KeyboardInterrupt after the block"]

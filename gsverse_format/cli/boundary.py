@@ -30,7 +30,8 @@ import threading
 import warnings
 from typing import Any, Callable, Iterator
 
-from ..atomic import WRITE_ERRNOS, discard_temporaries, outputs_written
+from ..atomic import (WRITE_ERRNOS, discard_temporaries, outputs_written,
+                      stop_signals_end_native_calls)
 from ..errors import GsverseError, UsageError
 from ..progress import Progress, silenced_warnings
 from ..textsafe import escape
@@ -64,7 +65,8 @@ def _raise_interrupted(signum: int, frame: object) -> None:
 def interrupting_signals() -> Iterator[None]:
     """While inside: SIGTERM and SIGHUP raise :class:`Interrupted` (only in the main thread,
     where Python runs signal handlers; a no-op elsewhere). Signals the caller set to be
-    ignored (``nohup``) stay ignored."""
+    ignored (``nohup``) stay ignored. Inside long native calls the stop signals end the
+    process at once (:func:`gsverse_format.atomic.interruptions_immediate`)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -76,7 +78,8 @@ def interrupting_signals() -> Iterator[None]:
         saved[signum] = previous
         signal.signal(signum, _raise_interrupted)
     try:
-        yield
+        with stop_signals_end_native_calls():
+            yield
     finally:
         for signum, previous in saved.items():
             signal.signal(signum, previous)
