@@ -156,7 +156,8 @@ function linearToSrgb(c) {
 const SH_C0 = 0.28209479177387814;
 
 /**
- * The rest pose of splat primitive `p` of mesh `m`.
+ * The rest pose of a KHR splat primitive (its JSON object `prim`); also how an engine plugin
+ * that builds its own splats reads the plain (unanchored) ones (src/three/).
  * @param {GltfDocument} doc
  * @param {any} prim
  * @param {string} where
@@ -164,7 +165,7 @@ const SH_C0 = 0.28209479177387814;
  *   count: number, shDegree: number}}  pose64: POSITION, ROTATION (not normalized) and SCALE
  *   dequantized in binary64, for deriving anchors
  */
-function readRestPose(doc, prim, where) {
+export function readRestPose(doc, prim, where) {
     const attrs = (prim.attributes && typeof prim.attributes === 'object') ? prim.attributes : {};
     const names = ['POSITION', `${KHR}:ROTATION`, `${KHR}:SCALE`, `${KHR}:OPACITY`];
     const missing = names.filter((n) => !(n in attrs));
