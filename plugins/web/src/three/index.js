@@ -25,6 +25,7 @@
  *   s.vertices, s.reset(), s.enabled, s.animation, s.setAnimationTime(i, t)  // as PlayCanvas's
  *   s.followSkinnedMesh(m)  // pose from a three.js SkinnedMesh (e.g. the anchor mesh as
  *                      // GLTFLoader builds it, played by an AnimationMixer): call every frame
+ *   new BoneSkinnedSplats(s)  // the bone-only approximation by Spark's SplatSkinning (skinning.js)
  *   s.destroy()
  *
  * Splat order: Spark's splats are built in the file's order (splat i of the file is Spark's
@@ -42,6 +43,7 @@ import { computeRest } from '../rest.js';
 import { RemapModifier, checkFault } from './shader.js';
 
 export { FAULTS, RENDER_FAULTS, RemapModifier, modifierGlobalsGLSL } from './shader.js';
+export { BoneSkinnedSplats, MAX_SPARK_BONES } from './skinning.js';
 export { AnchorError };
 
 /** @typedef {import('../types.js').AnchoredPrimitive} AnchoredPrimitive */
