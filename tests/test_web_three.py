@@ -16,6 +16,8 @@ import pytest
 from gsverse_format.conformance.check import check_results
 from gsverse_format.conformance.export import export_suite
 from gsverse_format.conformance.harness import suite_cases
+from test_conformance_rig import _MUST_FAIL as _RIG_MUST_FAIL
+from test_conformance_rig import RIG_IDS
 from test_web_plugin import _RENDER_FAULTS
 from web_tools import require_web_tools, run_node
 
@@ -81,6 +83,17 @@ def test_broken_three_modifier_fails_exactly_the_cases_it_should(suite, manifest
     report = check_results(suite, results, level="numbers")
     assert _failed(report) == _tagged(manifests, f"profile:{profile}") - _tagged(manifests, "invalid")
     assert (report.harness or {}).get("fault") == fault, report.harness
+
+
+@pytest.mark.parametrize("fault", sorted(_RIG_MUST_FAIL))
+def test_broken_rig_steps_fail_exactly_their_cases_on_three(suite, tmp_path, fault):
+    """The animation faults (skinned vertices left in global space, raw skin weights) fail the
+    same rig cases through the three.js plugin as through PlayCanvas."""
+    results = tmp_path / "results"
+    _run(suite, results, "--cases", "rig-*", "--fault", fault, "--level", "numbers")
+    report = check_results(suite, results, level="numbers")
+    assert {c.id for c in report.cases if c.id in RIG_IDS and c.status != "pass"} == _RIG_MUST_FAIL[fault]
+    assert (report.harness or {}).get("fault") == fault
 
 
 def test_three_plugin_passes_every_render_case_in_chromium(suite, three_results):
