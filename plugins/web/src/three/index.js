@@ -216,6 +216,7 @@ export class AnchoredSplatMesh {
         this.gpu = new AnchorTextures(prim);
         /** @type {RestQuantities} */
         this.rest = this.gpu.rest;
+        /** @type {import('./shader.js').RemapModifier} the remap, installed as the mesh's object modifier */
         this._modifier = new RemapModifier(this.gpu.uniforms, { fault });
         this.mesh = new SplatMesh({
             packedSplats: packRestPose(prim.rest, prim.count, prim.shCoefficients),
