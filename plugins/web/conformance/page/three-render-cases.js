@@ -52,13 +52,15 @@ function sparkIdle(spark) {
 /**
  * Render until Spark is idle (sparkIdle: it regenerates and sorts the splats asynchronously,
  * so a change shows a few frames later) and `identical` consecutive pictures are the same with
- * something drawn; at most `maxFrames`. Returns the last picture.
- * @param {{identical: number, maxFrames: number}} limits
+ * something drawn; at least `maxFrames` frames, and for as long as `waitMs` allows (a busy
+ * machine is slower, not failing). Returns the last picture.
+ * @param {{identical: number, maxFrames: number, waitMs: number}} limits
  */
 async function settle(limits) {
     const { renderer, scene, spark } = /** @type {ReturnType<typeof startThree>} */ (engine);
     let previous = null, same = 0, px = canvasPixels();
-    for (let i = 0; i < limits.maxFrames; ++i) {
+    const t0 = performance.now();
+    for (let i = 0; i < limits.maxFrames || performance.now() - t0 < limits.waitMs; ++i) {
         renderer.render(scene, camera);
         await new Promise((r) => requestAnimationFrame(() => r(undefined)));
         px = canvasPixels();
@@ -94,13 +96,13 @@ function placeCamera(cam) {
 /**
  * Render every frame of one render case.
  * @param {string} path  the case folder relative to the suite
- * @param {{fault?: string|null, sortWaitMs?: number, maxFrames?: number}} options  sortWaitMs: unused (Spark says
- *   when it is idle, sparkIdle)
+ * @param {{fault?: string|null, sortWaitMs?: number, maxFrames?: number}} options  sortWaitMs: how
+ *   long a pose may take to be regenerated, sorted and shown (the runner scales it with the load)
  * @returns {Promise<{frames?: {name: string, rgba: string, width: number, height: number}[], refused?: string, code?: string}>}
  */
 async function renderCase(path, options) {
     if (!engine) throw new Error('init() first');
-    const limits = { identical: 2, maxFrames: options.maxFrames ?? 240 };
+    const limits = { identical: 2, maxFrames: options.maxFrames ?? 60, waitMs: options.sortWaitMs ?? 3000 };
     const base = `/suite/${path}/`;
     const manifest = await (await fetch(`${base}case.json`)).json();
     const bytes = await fetchBytes(base + manifest.files.asset);
