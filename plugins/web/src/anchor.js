@@ -153,7 +153,8 @@ function linearToSrgb(c) {
     return v <= 0.0031308 ? v * 12.92 : 1.055 * v ** (1 / 2.4) - 0.055;
 }
 
-const SH_C0 = 0.28209479177387814;
+/** The SH degree-0 basis constant Y_0^0: a colour is 0.5 + SH_C0 * DC. */
+export const SH_C0 = 0.28209479177387814;
 
 /**
  * The rest pose of a KHR splat primitive (its JSON object `prim`); also how an engine plugin

@@ -56,6 +56,10 @@ import { JACOBI_SWEEPS } from './decompose.js';
 /** Cyclic Jacobi sweeps (the same count as src/decompose.js). */
 export const GSV_JACOBI_SWEEPS = JACOBI_SWEEPS;
 
+/** Largest width of the chunk's data textures (every WebGL2 device supports 4096; the chunk reads
+ * element i at (i % width, i / width) of whatever width a texture has). */
+export const DATA_TEXTURE_MAX_WIDTH = 4096;
+
 /**
  * Names of the per-splat inputs. The chunk reads them through functions the engine defines
  * before it: `uvec4 loadGsvAnchor()`, `vec4 loadGsvLocalRot()`, `vec4 loadGsvLocalScale()`

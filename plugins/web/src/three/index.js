@@ -36,10 +36,11 @@
 
 import * as THREE from 'three';
 import { PackedSplats, SplatMesh } from '@sparkjsdev/spark';
-import { AnchorError, readAnchoredGlb, readRestPose } from '../anchor.js';
+import { AnchorError, SH_C0, readAnchoredGlb, readRestPose } from '../anchor.js';
 import { readAnchorAnimation } from '../animation.js';
 import { globalMatrices, parseGltf } from '../glb.js';
 import { computeRest } from '../rest.js';
+import { DATA_TEXTURE_MAX_WIDTH } from '../remap-glsl.js';
 import { RemapModifier, checkFault } from './shader.js';
 
 export { FAULTS, RENDER_FAULTS, RemapModifier, modifierGlobalsGLSL } from './shader.js';
@@ -53,19 +54,14 @@ export { AnchorError };
 /** @typedef {import('../animation.js').AnimationInfo} AnimationInfo */
 /** @typedef {import('./shader.js').RemapUniforms} RemapUniforms */
 
-/** Largest width of the data textures (every WebGL2 device supports 4096). */
-const MAX_WIDTH = 4096;
-
-/** The SH degree-0 basis constant: colour = 0.5 + SH_C0 * DC. */
-const SH_C0 = 0.28209479177387814;
 
 /**
- * An RGBA data texture of `count` texels (row-major, width at most MAX_WIDTH), nearest sampling.
+ * An RGBA data texture of `count` texels (row-major, width at most DATA_TEXTURE_MAX_WIDTH), nearest sampling.
  * @param {number} count
  * @param {'float'|'uint'} kind  RGBA32F or RGBA32UI
  */
 function dataTexture(count, kind) {
-    const width = Math.max(1, Math.min(count, MAX_WIDTH));
+    const width = Math.max(1, Math.min(count, DATA_TEXTURE_MAX_WIDTH));
     const height = Math.max(1, Math.ceil(count / width));
     const data = kind === 'float' ? new Float32Array(4 * width * height) : new Uint32Array(4 * width * height);
     const format = kind === 'float' ? THREE.RGBAFormat : THREE.RGBAIntegerFormat;
