@@ -1,7 +1,7 @@
 #!/usr/bin/env node
 // The conformance harness of the GPU path, in a real browser:
-//   node conformance/run-browser.mjs SUITE RESULTS [--level numbers|render|all] [--fault NAME] [--cases GLOB]
-//                                    [--backend webgl2|webgpu] [--json]
+//   node conformance/run-browser.mjs SUITE RESULTS [--engine playcanvas|three] [--level numbers|render|all]
+//                                    [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]
 // serves the package and SUITE on localhost, starts headless Chromium (playwright-core, the
 // system /usr/bin/chromium or $CHROMIUM, WebGL2 through ANGLE/SwiftShader when there is no GPU),
 // imports every case with the PlayCanvas plugin, remaps every pose on the GPU with the same
@@ -16,6 +16,9 @@
 // The render level (the suite's `render_cases`): every frame of every render case is rendered
 // by the engine with the plugin (conformance/page/render-cases.js) and written as
 // RESULTS/<id>/frame_NNN.png. --level picks the levels (default: both).
+// --engine three runs the same with the three.js plugin (src/three/: Spark's splats, the remap
+// as Spark's object modifier, read back by Spark's Readback; WebGL2 only); its faults are
+// those of src/three/shader.js FAULTS. Default: playcanvas.
 
 import { mkdirSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { cpus, loadavg, tmpdir } from 'node:os';
@@ -36,6 +39,25 @@ export const CHROMIUM_ARGS = [
     '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update',
     '--disable-sync', '--no-first-run',
 ];
+
+/**
+ * The pages of each engine plugin: numbers level, render level, and how harness.json names it.
+ * @type {{[engine: string]: {numbers: string, render: string, name: (device: string) => string, dump: string}}}
+ */
+export const ENGINES = {
+    playcanvas: {
+        numbers: 'conformance/page/index.html',
+        render: 'conformance/page/render-cases.html',
+        name: (device) => `@gsverse/web PlayCanvas plugin (GPU remap, src/playcanvas/${device === 'webgpu' ? 'shader-wgsl.js, WGSL' : 'shader.js, GLSL'})`,
+        dump: 'rotation+scale read back from the GPU (RGBA32F); rest, opacity and SH from the importer',
+    },
+    three: {
+        numbers: 'conformance/page/three.html',
+        render: 'conformance/page/three-render-cases.html',
+        name: () => '@gsverse/web three.js plugin (GPU remap as a Spark object modifier, src/three/shader.js, GLSL)',
+        dump: "rotation+scale read back from the GPU (Spark's Readback, float32 bits as RGBA8); rest, opacity and SH from the importer",
+    },
+};
 
 /** Extra flags for WebGPU (software adapter when there is no GPU). */
 export const WEBGPU_ARGS = ['--enable-unsafe-webgpu', '--use-webgpu-adapter=swiftshader'];
@@ -142,23 +164,33 @@ function decodeDump(dump) {
 }
 
 /**
+ * @param {string|undefined} engine
+ */
+function engineOf(engine) {
+    const e = ENGINES[engine || 'playcanvas'];
+    if (!e) throw new Error(`unknown engine '${engine}' (known: ${Object.keys(ENGINES).join(', ')})`);
+    return e;
+}
+
+/**
  * Run a suite in the browser and write RESULTS.
  * @param {string} suiteDir
  * @param {string} resultsDir
- * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', log?: (line: string) => void}} [options]
+ * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', engine?: string, log?: (line: string) => void}} [options]
  */
 export async function runSuiteInBrowser(suiteDir, resultsDir, options = {}) {
     const log = options.log || (() => {});
     const t0 = performance.now();
     const backendName = options.backend || 'webgl2';
-    const browser = await launchPage({ suiteDir, webgpu: backendName === 'webgpu' });
+    const engine = engineOf(options.engine);
+    const browser = await launchPage({ suiteDir, page: engine.numbers, webgpu: backendName === 'webgpu' });
     /** @type {{id: string, kind: string, outcome: string, code?: string, ms: number}[]} */
     const summary = [];
     try {
         const backend = await browser.page.evaluate((b) => /** @type {any} */ (window).gsvConformance.init({ backend: b }), backendName);
         const pkg = JSON.parse(readFileSync(join(PKG_DIR, 'package.json'), 'utf8'));
         writeHarness(resultsDir, {
-            name: `@gsverse/web PlayCanvas plugin (GPU remap, src/playcanvas/${backend.device === 'webgpu' ? 'shader-wgsl.js, WGSL' : 'shader.js, GLSL'})`,
+            name: engine.name(backend.device),
             version: pkg.version,
             engine: `${backend.engine} ${backend.engine_version}`,
             backend: `${backend.device}: ${backend.renderer}`,
@@ -168,7 +200,7 @@ export async function runSuiteInBrowser(suiteDir, resultsDir, options = {}) {
             shading_language: backend.shading_language,
             browser: backend.user_agent,
             precision: `float32 GPU arithmetic (${backend.float_precision}); rest quantities in binary64 on the CPU, uploaded as float32`,
-            dump: 'rotation+scale read back from the GPU (RGBA32F); rest, opacity and SH from the importer',
+            dump: engine.dump,
             fault: options.fault || null,
         });
         for (const { manifest } of readSuite(suiteDir)) {
@@ -205,7 +237,7 @@ export async function runSuiteInBrowser(suiteDir, resultsDir, options = {}) {
  * (or `refused` / `error`).
  * @param {string} suiteDir
  * @param {string} resultsDir
- * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', log?: (line: string) => void}} [options]
+ * @param {{fault?: string|null, cases?: string, backend?: 'webgl2'|'webgpu', engine?: string, log?: (line: string) => void}} [options]
  */
 export async function runRenderCasesInBrowser(suiteDir, resultsDir, options = {}) {
     const log = options.log || (() => {});
@@ -215,7 +247,7 @@ export async function runRenderCasesInBrowser(suiteDir, resultsDir, options = {}
     /** @type {{id: string, kind: string, outcome: string, code?: string, ms: number}[]} */
     const summary = [];
     if (!cases.length) return { backend: null, summary, seconds: 0 };
-    const browser = await launchPage({ suiteDir, page: 'conformance/page/render-cases.html', webgpu: backendName === 'webgpu' });
+    const browser = await launchPage({ suiteDir, page: engineOf(options.engine).render, webgpu: backendName === 'webgpu' });
     try {
         const backend = await browser.page.evaluate((b) => /** @type {any} */ (window).gsvRenderCases.init({ backend: b }), backendName);
         for (const { manifest } of cases) {
@@ -261,17 +293,22 @@ async function main() {
     /** @type {string[]} */
     const positional = [];
     for (let i = 0; i < args.length; ++i) {
-        if (['--fault', '--cases', '--backend', '--level'].includes(args[i])) values[args[i]] = args[++i];
+        if (['--fault', '--cases', '--backend', '--level', '--engine'].includes(args[i])) values[args[i]] = args[++i];
         else if (args[i].startsWith('--')) flags.add(args[i]);
         else positional.push(args[i]);
     }
     if (positional.length !== 2) {
-        process.stderr.write('usage: node conformance/run-browser.mjs SUITE RESULTS [--level numbers|render|all] [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]\n');
+        process.stderr.write('usage: node conformance/run-browser.mjs SUITE RESULTS [--engine playcanvas|three] [--level numbers|render|all] [--fault NAME] [--cases GLOB] [--backend webgl2|webgpu] [--json]\n');
         process.exit(2);
     }
     const level = values['--level'] || 'all';
     if (!['numbers', 'render', 'all'].includes(level)) {
         process.stderr.write(`run-browser: --level must be numbers, render or all (got ${level})\n`);
+        process.exit(2);
+    }
+    const engineName = values['--engine'] || 'playcanvas';
+    if (!(engineName in ENGINES)) {
+        process.stderr.write(`run-browser: --engine must be ${Object.keys(ENGINES).join(' or ')} (got ${engineName})\n`);
         process.exit(2);
     }
     const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
@@ -280,6 +317,7 @@ async function main() {
         fault: values['--fault'] || null,
         cases: values['--cases'],
         backend: /** @type {'webgl2'|'webgpu'} */ (values['--backend'] || 'webgl2'),
+        engine: engineName,
         log: json ? undefined : (/** @type {string} */ line) => process.stdout.write(`${line}\n`),
     };
     let backend = null, seconds = 0;
@@ -297,7 +335,7 @@ async function main() {
         seconds += run.seconds;
         summary.push(...run.summary);
         if (level === 'render' && run.backend) {
-            writeHarness(resultsDir, { name: '@gsverse/web PlayCanvas plugin (render level)', engine: `${run.backend.engine} ${run.backend.engine_version}`,
+            writeHarness(resultsDir, { name: `${engineOf(engineName).name(run.backend.device)} (render level)`, engine: `${run.backend.engine} ${run.backend.engine_version}`,
                 backend: `${run.backend.device}: ${run.backend.renderer}`, fault: options.fault });
         }
     }

@@ -153,10 +153,12 @@ function linearToSrgb(c) {
     return v <= 0.0031308 ? v * 12.92 : 1.055 * v ** (1 / 2.4) - 0.055;
 }
 
-const SH_C0 = 0.28209479177387814;
+/** The SH degree-0 basis constant Y_0^0: a colour is 0.5 + SH_C0 * DC. */
+export const SH_C0 = 0.28209479177387814;
 
 /**
- * The rest pose of splat primitive `p` of mesh `m`.
+ * The rest pose of a KHR splat primitive (its JSON object `prim`); also how an engine plugin
+ * that builds its own splats reads the plain (unanchored) ones (src/three/).
  * @param {GltfDocument} doc
  * @param {any} prim
  * @param {string} where
@@ -164,7 +166,7 @@ const SH_C0 = 0.28209479177387814;
  *   count: number, shDegree: number}}  pose64: POSITION, ROTATION (not normalized) and SCALE
  *   dequantized in binary64, for deriving anchors
  */
-function readRestPose(doc, prim, where) {
+export function readRestPose(doc, prim, where) {
     const attrs = (prim.attributes && typeof prim.attributes === 'object') ? prim.attributes : {};
     const names = ['POSITION', `${KHR}:ROTATION`, `${KHR}:SCALE`, `${KHR}:OPACITY`];
     const missing = names.filter((n) => !(n in attrs));

@@ -1,5 +1,6 @@
 // @gsverse/web: reading GSVERSE_gaussian_splatting_mesh_anchor assets, rest quantities and the
-// CPU remap. The PlayCanvas GPU plugin is the separate entry point '@gsverse/web/playcanvas'.
+// CPU remap. The GPU plugins are the separate entry points '@gsverse/web/playcanvas' and
+// '@gsverse/web/three'.
 
 export { AnchorError, readAnchoredGlb, ANCHOR_ACCESSORS, EXTENSION, KHR } from './anchor.js';
 export { GltfError, parseGltf, dequantize, globalMatrices, MAX_DATA_URI_BYTES, MAX_GLTF_ARRAY_ITEMS, MAX_READ_AMPLIFICATION, READ_AMPLIFICATION_SLACK } from './glb.js';
@@ -11,6 +12,7 @@ export {
     matrixToQuatInto, quatToMatrix, JACOBI_SWEEPS,
 } from './decompose.js';
 export { AnchorAnimation, readAnchorAnimation } from './animation.js';
+export { splatBoneWeights, boneOnlyMeansInto, MAX_SPLAT_BONES } from './bone-weights.js';
 export { invertInto } from './keyframes.js';
 export { readPhysics, RIGID_BODIES, IMPLICIT_SHAPES, PHYSICS_KINDS } from './physics.js';
 

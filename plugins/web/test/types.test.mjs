@@ -29,7 +29,7 @@ function run(cmd, args, cwd) {
     return { status: r.status, out: `${r.stdout}${r.stderr}${r.error ? String(r.error) : ''}` };
 }
 
-// Uses all three entry points the way an application does. Every `@ts-expect-error` line must be
+// Uses the three other entry points the way an application does. Every `@ts-expect-error` line must be
 // an error: with `any` in the declarations it is not, and tsc reports the unused directive.
 const CONSUMER = `
 import {
@@ -145,6 +145,47 @@ export async function author(): Promise<Uint8Array> {
 }
 `;
 
+// The three.js entry point, as an application uses it (a separate file: Spark's own declarations
+// use extensionless relative imports, which nodenext resolution refuses, so it is compiled with
+// bundler resolution, libraries checked, and with nodenext only with skipLibCheck).
+const THREE_CONSUMER = `
+import * as THREE from 'three';
+import { SparkRenderer, SplatMesh } from '@sparkjsdev/spark';
+import { AnchoredSplatMesh, BoneSkinnedSplats, loadAnchoredAsset, type AnchorError } from '@gsverse/web/three';
+
+export async function three(renderer: THREE.WebGLRenderer, source: string | Uint8Array): Promise<number> {
+    const scene = new THREE.Scene();
+    scene.add(new SparkRenderer({ renderer }));
+    const { root, anchored, plain, animations } = await loadAnchoredAsset(source, { name: 'asset.glb' });
+    const group: THREE.Group = root;
+    scene.add(group);
+    const splat: AnchoredSplatMesh = anchored[0];
+    const mesh: SplatMesh = splat.mesh;
+    const others: SplatMesh[] = plain;
+    const rest: Float32Array = splat.prim.anchorMesh.vertices;
+    splat.setVertices(rest.map((v) => v * 1.5));
+    const current: Float32Array = splat.vertices;
+    if (animations.length) splat.setAnimationTime(animations[0].index, 0.5);
+    splat.enabled = false;
+    const bones = splat.animation?.skinned ? new BoneSkinnedSplats(splat) : null;
+    bones?.setAnimationTime(0, 0.25);
+    bones?.dispose();
+    splat.reset();
+    splat.destroy();
+    // @ts-expect-error the vertices are numbers
+    splat.setVertices(['0', '1', '2']);
+    // @ts-expect-error a source is a URL or GLB bytes
+    await loadAnchoredAsset(42);
+    // @ts-expect-error the result has no such member
+    (await loadAnchoredAsset(source)).nonexistent;
+    return current.length + others.length + (mesh.visible ? 1 : 0);
+}
+
+export function code(err: AnchorError): string {
+    return err.code;
+}
+`;
+
 // A deliberate error: tsc must report it (the check above can fail).
 const BROKEN = `
 import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
@@ -157,8 +198,11 @@ export async function broken(app: AppBase): Promise<string> {
 }
 `;
 
-/** @param {string} module @param {string} moduleResolution @param {boolean} [skipLibCheck] */
-function tsconfig(module, moduleResolution, skipLibCheck = false) {
+/**
+ * @param {string} module @param {string} moduleResolution @param {boolean} [skipLibCheck]
+ * @param {string} [file]
+ */
+function tsconfig(module, moduleResolution, skipLibCheck = false, file = 'index.ts') {
     return JSON.stringify({
         compilerOptions: {
             // skipLibCheck off: the shipped declarations themselves are checked (esnext: the
@@ -166,7 +210,7 @@ function tsconfig(module, moduleResolution, skipLibCheck = false) {
             strict: true, noEmit: true, module, moduleResolution, target: 'es2022', lib: ['esnext', 'dom'],
             skipLibCheck,
         },
-        files: ['index.ts'],
+        files: [file],
     }, null, 2);
 }
 
@@ -208,6 +252,8 @@ test('the packed tarball ships declarations that a strict TypeScript consumer co
         const links = [
             'typescript', 'playcanvas', '@gltf-transform/core', '@gltf-transform/extensions', 'property-graph',
             '@types/node', '@types/webxr',
+            // the three.js entry point's peers and what @types/three's declarations import
+            'three', '@sparkjsdev/spark', '@types/three', '@types/stats.js', '@webgpu/types', 'fflate',
         ];
         for (const name of links) {
             mkdirSync(dirname(join(modules, name)), { recursive: true });
@@ -215,6 +261,9 @@ test('the packed tarball ships declarations that a strict TypeScript consumer co
         }
         writeFileSync(join(consumer, 'package.json'), JSON.stringify({ name: 'consumer', private: true, type: 'module' }));
         writeFileSync(join(consumer, 'index.ts'), CONSUMER);
+        writeFileSync(join(consumer, 'three.ts'), THREE_CONSUMER);
+        writeFileSync(join(consumer, 'tsconfig.three-bundler.json'), tsconfig('esnext', 'bundler', false, 'three.ts'));
+        writeFileSync(join(consumer, 'tsconfig.three-nodenext.json'), tsconfig('nodenext', 'nodenext', true, 'three.ts'));
         writeFileSync(join(consumer, 'tsconfig.nodenext.json'), tsconfig('nodenext', 'nodenext'));
         writeFileSync(join(consumer, 'tsconfig.bundler.json'), tsconfig('esnext', 'bundler'));
         // for the error in the consumer's own code only (quicker: the libraries are not checked)
@@ -230,6 +279,12 @@ test('the packed tarball ships declarations that a strict TypeScript consumer co
         await t.test('tsc --strict, moduleResolution bundler', () => {
             const r = compile('tsconfig.bundler.json');
             assert.equal(r.status, 0, r.out);
+        });
+        await t.test('tsc --strict, the three.js entry point (bundler; nodenext with skipLibCheck)', () => {
+            for (const config of ['tsconfig.three-bundler.json', 'tsconfig.three-nodenext.json']) {
+                const r = compile(config);
+                assert.equal(r.status, 0, `${config}:\n${r.out}`);
+            }
         });
         await t.test('tsc --strict against the lowest supported PlayCanvas', () => {
             const lowest = JSON.parse(readFileSync(join(NM, 'playcanvas-lowest', 'package.json'), 'utf8')).version;

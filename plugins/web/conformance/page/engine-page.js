@@ -1,11 +1,13 @@
 // What every browser page of the package's harnesses does with the engine, once: start a
 // PlayCanvas application on the page's canvas (WebGL2 or WebGPU), describe the device, render a
 // frame on demand, read the canvas back, wait until the picture stops changing, and move bytes
-// in (fetchBytes) and out (toBase64). Used by the
+// in and out (fetchBytes, toBase64 of bytes.js, re-exported). Used by the
 // conformance pages (numbers and render levels), the render check and the repository's
 // cross-check of gsverse-render (tests/render_js).
 
 import * as pc from 'playcanvas';
+
+export { fetchBytes, toBase64 } from './bytes.js';
 
 /**
  * A PlayCanvas application on `canvas`, rendering only when asked (autoRender off).
@@ -120,27 +122,4 @@ export async function settleFrames(app, options = {}) {
         previous = px;
     }
     return px;
-}
-
-/**
- * The bytes of `view` as base64 (how a page hands binary results to the harness).
- * @param {ArrayBufferView} view
- */
-export function toBase64(view) {
-    const bytes = new Uint8Array(view.buffer, view.byteOffset, view.byteLength);
-    let s = '';
-    for (let i = 0; i < bytes.length; i += 0x8000) {
-        s += String.fromCharCode.apply(null, /** @type {any} */ (bytes.subarray(i, i + 0x8000)));
-    }
-    return btoa(s);
-}
-
-/**
- * The bytes at `url` (an error naming the URL and the HTTP status when it fails).
- * @param {string} url
- */
-export async function fetchBytes(url) {
-    const response = await fetch(url);
-    if (!response.ok) throw new Error(`${url}: HTTP ${response.status}`);
-    return new Uint8Array(await response.arrayBuffer());
 }

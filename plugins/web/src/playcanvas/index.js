@@ -53,6 +53,7 @@ import { remapMeansInto } from '../remap-cpu.js';
 import { centersChanged, checkComponent, checkEngine, checkResource, meshSplatAssets } from './engine.js';
 import { STREAM_ANCHOR, STREAM_LOCAL_ROT, STREAM_LOCAL_SCALE, modifyChunkGLSL } from './shader.js';
 import { modifyChunkWGSL } from './shader-wgsl.js';
+import { DATA_TEXTURE_MAX_WIDTH } from '../remap-glsl.js';
 
 export { FAULTS, remapChunkGLSL, modifyChunkGLSL, processChunkGLSL } from './shader.js';
 export { remapChunkWGSL, modifyChunkWGSL, processChunkWGSL } from './shader-wgsl.js';
@@ -73,15 +74,13 @@ const SORT_WAIT_MS = 1000;
 /** frames after a sort on which vertices set before it are marked for drawing again (_onSorted) */
 const REMARK_FRAMES = 4;
 
-/** Largest width of the data textures (every WebGL2 device supports 4096). */
-const MAX_WIDTH = 4096;
 
 /**
  * @param {number} count
  * @returns {[number, number]}
  */
 function textureSize(count) {
-    const width = Math.max(1, Math.min(count, MAX_WIDTH));
+    const width = Math.max(1, Math.min(count, DATA_TEXTURE_MAX_WIDTH));
     return [width, Math.max(1, Math.ceil(count / width))];
 }
 
