@@ -6,16 +6,28 @@
 // In a physics scene, left button on a rigid object grabs it (rigid.js, RigidDrag): it follows
 // the pointer and, let go, flies off with the pointer's velocity.
 // Left button elsewhere, or right or middle button: orbit. Wheel: zoom.
+// The camera is the engine adapter's CameraRig (engine-playcanvas.js), so this is engine-free.
 
-import * as pc from 'playcanvas';
 import { Drag } from './controls.js';
 import { RigidDrag } from './rigid.js';
 
+/** @typedef {import('./engine-playcanvas.js').CameraRig} CameraRig */
+
+/** A point that can be set in place (the orbit's target). */
+class Point {
+    constructor() { this.x = 0; this.y = 0; this.z = 0; }
+    /** @param {number} x @param {number} y @param {number} z */
+    set(x, y, z) { this.x = x; this.y = y; this.z = z; return this; }
+}
+
+/** @param {number[]} a @param {number[]} b */
+const dot = (a, b) => a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+
 export class OrbitCamera {
-    /** @param {pc.Entity} camera */
+    /** @param {CameraRig} camera */
     constructor(camera) {
         this.camera = camera;
-        this.target = new pc.Vec3();
+        this.target = new Point();
         this.yaw = 0;
         this.pitch = -10;
         this.distance = 5;
@@ -27,7 +39,7 @@ export class OrbitCamera {
      */
     frame(center, size) {
         this.target.set(center[0], center[1], center[2]);
-        const fov = (this.camera.camera?.fov ?? 45) * Math.PI / 180;
+        const fov = (this.camera.fov ?? 45) * Math.PI / 180;
         this.distance = 0.5 * size / Math.tan(0.5 * fov);
         this.apply();
     }
@@ -35,11 +47,11 @@ export class OrbitCamera {
     apply() {
         const p = this.pitch * Math.PI / 180, y = this.yaw * Math.PI / 180;
         const d = this.distance;
-        this.camera.setPosition(
-            this.target.x + d * Math.cos(p) * Math.sin(y),
-            this.target.y - d * Math.sin(p),
-            this.target.z + d * Math.cos(p) * Math.cos(y));
-        this.camera.lookAt(this.target);
+        const t = this.target;
+        this.camera.place([
+            t.x + d * Math.cos(p) * Math.sin(y),
+            t.y - d * Math.sin(p),
+            t.z + d * Math.cos(p) * Math.cos(y)], [t.x, t.y, t.z]);
     }
 
     /** @param {number} dx @param {number} dy  pixels */
@@ -62,7 +74,7 @@ export class OrbitCamera {
 export class Grabber {
     /**
      * @param {HTMLCanvasElement} canvas
-     * @param {pc.Entity} camera
+     * @param {CameraRig} camera
      * @param {OrbitCamera} orbit
      * @param {() => import('./scene.js').DemoAsset|null} current
      * @param {{onGrab?: () => void}} [hooks]
@@ -74,7 +86,7 @@ export class Grabber {
         this.current = current;
         this.hooks = hooks;
         this.enabled = true;
-        /** @type {null | {drag: Drag|RigidDrag, origin: pc.Vec3, normal: pc.Vec3}} */
+        /** @type {null | {drag: Drag|RigidDrag, origin: number[], normal: number[]}} */
         this.grab = null;
         /** @type {null | {x: number, y: number}} */
         this.orbiting = null;
@@ -93,18 +105,17 @@ export class Grabber {
     pick(x, y) {
         const asset = this.current();
         if (!asset) return null;
-        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
-        const v = new pc.Vec3(), s = new pc.Vec3();
-        const fwd = this.camera.forward, eye = this.camera.getPosition();
+        const cam = this.camera;
+        const fwd = cam.forward(), eye = cam.eye();
         let best = null, bestD = 40 * 40, bestZ = Infinity;
         for (const b of asset.bodies) {
             const p = b.soft.positions();
             for (let i = 0; i < b.soft.count; i++) {
-                v.set(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
-                const z = (v.x - eye.x) * fwd.x + (v.y - eye.y) * fwd.y + (v.z - eye.z) * fwd.z;
+                const v = [p[3 * i], p[3 * i + 1], p[3 * i + 2]];
+                const z = (v[0] - eye[0]) * fwd[0] + (v[1] - eye[1]) * fwd[1] + (v[2] - eye[2]) * fwd[2];
                 if (z <= 0) continue;
-                cam.worldToScreen(v, s);
-                const d = (s.x - x) ** 2 + (s.y - y) ** 2;
+                const s = cam.toScreen(v);
+                const d = (s[0] - x) ** 2 + (s[1] - y) ** 2;
                 // prefer the front-most of the vertices under the cursor
                 if (d < bestD - 64 || (d < bestD + 64 && z < bestZ)) {
                     best = { soft: b.soft, index: i, positions: p };
@@ -120,18 +131,15 @@ export class Grabber {
             const p = rigid.worldPoints();
             let x0 = Infinity, x1 = -Infinity, y0 = Infinity, y1 = -Infinity, cz = 0, c = [0, 0, 0];
             for (let i = 0; i < p.length; i += 3) {
-                v.set(p[i], p[i + 1], p[i + 2]);
-                cam.worldToScreen(v, s);
-                x0 = Math.min(x0, s.x); x1 = Math.max(x1, s.x); y0 = Math.min(y0, s.y); y1 = Math.max(y1, s.y);
+                const s = cam.toScreen([p[i], p[i + 1], p[i + 2]]);
+                x0 = Math.min(x0, s[0]); x1 = Math.max(x1, s[0]); y0 = Math.min(y0, s[1]); y1 = Math.max(y1, s[1]);
                 for (let k = 0; k < 3; k++) c[k] += 3 * p[i + k] / p.length;
             }
-            cz = (c[0] - eye.x) * fwd.x + (c[1] - eye.y) * fwd.y + (c[2] - eye.z) * fwd.z;
+            cz = (c[0] - eye[0]) * fwd[0] + (c[1] - eye[1]) * fwd[1] + (c[2] - eye[2]) * fwd[2];
             if (cz <= 0 || x < x0 || x > x1 || y < y0 || y > y1 || (best && bestZ < cz)) continue;
-            const a = cam.screenToWorld(x, y, cam.nearClip), b2 = cam.screenToWorld(x, y, cam.farClip);
-            const dir = b2.clone().sub(a), denom = dir.dot(fwd);
-            const t = (cz - a.clone().sub(eye).dot(fwd)) / denom;
-            const hit = a.add(dir.mulScalar(t));
-            best = { rigid, point: [hit.x, hit.y, hit.z] };
+            const { origin: a, dir } = cam.ray(x, y), denom = dot(dir, fwd);
+            const t = (cz - dot([a[0] - eye[0], a[1] - eye[1], a[2] - eye[2]], fwd)) / denom;
+            best = { rigid, point: [a[0] + t * dir[0], a[1] + t * dir[1], a[2] + t * dir[2]] };
             bestZ = cz;
         }
         return best;
@@ -144,7 +152,7 @@ export class Grabber {
      * @returns {{from: number[], to: number[]}}
      */
     farEnd(soft, axis, pixels) {
-        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
+        const cam = this.camera;
         const p = soft.positions(), k = axis, c = soft.bounds().center;
         let best = 0, bestScore = -Infinity;
         for (let i = 0; i < soft.count; i++) {
@@ -152,10 +160,10 @@ export class Grabber {
             const score = p[3 * i + k] - 0.5 * off;
             if (score > bestScore) { bestScore = score; best = i; }
         }
-        const s0 = cam.worldToScreen(new pc.Vec3(p[3 * best], p[3 * best + 1], p[3 * best + 2]));
-        const sc = cam.worldToScreen(new pc.Vec3(c[0], c[1], c[2]));
-        const dir = [s0.x - sc.x, s0.y - sc.y], len = Math.hypot(dir[0], dir[1]) || 1;
-        return { from: [s0.x, s0.y], to: [s0.x + pixels * dir[0] / len, s0.y + pixels * dir[1] / len] };
+        const s0 = cam.toScreen([p[3 * best], p[3 * best + 1], p[3 * best + 2]]);
+        const sc = cam.toScreen([c[0], c[1], c[2]]);
+        const dir = [s0[0] - sc[0], s0[1] - sc[1]], len = Math.hypot(dir[0], dir[1]) || 1;
+        return { from: [s0[0], s0[1]], to: [s0[0] + pixels * dir[0] / len, s0[1] + pixels * dir[1] / len] };
     }
 
     /** @param {PointerEvent} e */
@@ -176,13 +184,13 @@ export class Grabber {
         this.hooks.onGrab?.();
         if ('rigid' in hit) {
             const q = hit.point;
-            this.grab = { drag: new RigidDrag(hit.rigid, q), origin: new pc.Vec3(q[0], q[1], q[2]), normal: this.camera.forward.clone() };
+            this.grab = { drag: new RigidDrag(hit.rigid, q), origin: [q[0], q[1], q[2]], normal: this.camera.forward() };
             return true;
         }
         const { soft, index, positions: p } = hit;
         const drag = new Drag(soft, index, { moveWhole });
-        const origin = new pc.Vec3(p[3 * index], p[3 * index + 1], p[3 * index + 2]);
-        this.grab = { drag, origin, normal: this.camera.forward.clone() };
+        const origin = [p[3 * index], p[3 * index + 1], p[3 * index + 2]];
+        this.grab = { drag, origin, normal: this.camera.forward() };
         return true;
     }
 
@@ -194,16 +202,12 @@ export class Grabber {
     dragTo(x, y, time) {
         const g = this.grab;
         if (!g) return;
-        const cam = /** @type {pc.CameraComponent} */ (this.camera.camera);
-        const a = cam.screenToWorld(x, y, cam.nearClip);
-        const b = cam.screenToWorld(x, y, cam.farClip);
-        const dir = b.clone().sub(a);
-        const denom = dir.dot(g.normal);
+        const { origin: a, dir } = this.camera.ray(x, y);
+        const denom = dot(dir, g.normal);
         if (Math.abs(denom) < 1e-9) return;
-        const t = g.origin.clone().sub(a).dot(g.normal) / denom;
-        const hit = a.add(dir.mulScalar(t));
-        const d = hit.sub(g.origin);
-        g.drag.move([d.x, d.y, d.z], time);
+        const o = g.origin;
+        const t = dot([o[0] - a[0], o[1] - a[1], o[2] - a[2]], g.normal) / denom;
+        g.drag.move([0, 1, 2].map((k) => a[k] + t * dir[k] - o[k]), time);
     }
 
     /** Let go of the grabbed body (at time `t`, a pointer event's timeStamp). @param {number} [t] */

@@ -1,25 +1,26 @@
-// The GS-Verse web demo: a PlayCanvas app that loads an anchored GLB with @gsverse/web/playcanvas
-// (splats remapped on the GPU), turns each anchor mesh into a Jolt soft body, and lets the user
-// stretch, twist, shake and drop it. `window.gsverseDemo` is a scripted API for tests.
+// The GS-Verse web demo: loads an anchored GLB with @gsverse/web/playcanvas or, with
+// ?engine=three, @gsverse/web/three (splats remapped on the GPU; the engine adapters
+// engine-playcanvas.js and engine-three.js), turns each anchor mesh into a Jolt soft body, and lets
+// the user stretch, twist, shake and drop it. `window.gsverseDemo` is a scripted API for tests.
 //
 // URL parameters: ?asset=URL (default: the asset the server names in /config.json; the shipped
 // physics scene is ?asset=scene.glb),
 // ?test (fixed front camera, plain background, no panel or ground, physics paused: for
-// deterministic screenshots), ?physics=surface and ?budget=N (the physics mesh, see physmesh.js).
+// deterministic screenshots), ?physics=surface and ?budget=N (the physics mesh, see physmesh.js),
+// ?engine=three (three.js + Spark instead of PlayCanvas).
 
-import * as pc from 'playcanvas';
 import initJolt from 'jolt-physics';
-import { RemapProbe } from '@gsverse/web/playcanvas/probe.js';
 import { PhysicsWorld, axisIndex, DEFAULT_BUDGET } from './physics.js';
 import { DemoAsset } from './scene.js';
 import { OrbitCamera, Grabber } from './input.js';
-import { RemapTimer } from './gputimer.js';
 import { SliderDrive, Shake, CAP } from './controls.js';
 import { FrameWatch, physicsLabel, statsText, showErrorIn, hideErrorIn } from './report.js';
 import { AnimationPlayer, bindAnimationUi, showAnimationUi } from './player.js';
 
 const params = new URLSearchParams(location.search);
 const TEST = params.has('test');
+/** The engine: 'playcanvas' (default) or 'three' (three.js + Spark). */
+const ENGINE = params.get('engine') === 'three' ? 'three' : 'playcanvas';
 const DT = 1 / 60;
 /** At most this many physics steps per frame, and no new step once a frame's steps took this
  * long (ms): on a slow machine the simulation runs slower than real time instead of stalling the
@@ -55,13 +56,12 @@ function frames(n = 2) {
 
 // ---- page state ------------------------------------------------------------------------------
 
-/** @type {any} */ let app = null;
+/** @type {import('./engine-playcanvas.js').Engine|null} */ let engine = null;
 /** @type {PhysicsWorld|null} */ let world = null;
 /** @type {DemoAsset|null} */ let current = null;
 /** @type {OrbitCamera|null} */ let orbit = null;
-/** @type {RemapTimer|null} */ let timer = null;
+/** @type {import('./gputimer.js').RemapTimer|null} */ let timer = null;
 /** @type {Grabber|null} */ let grabber = null;
-/** @type {any} */ let ground = null;
 let paused = TEST;
 let dirty = true;
 let accumulator = 0;
@@ -182,7 +182,7 @@ function frameAsset() {
         : current.bodies.length ? current.restBounds() : { center: [0, 0, 0], size: [1, 1, 1], min: [-0.5, -0.5, -0.5] };
     const size = Math.max(...rb.size) || 1;
     state.axis = /** @type {0|1|2} */ (rb.size.indexOf(Math.max(...rb.size)));
-    current.placeGround(world, ground, rb);
+    current.placeGround(world, engine?.ground ?? null, rb);
     if (TEST) {
         orbit.yaw = 0;
         orbit.pitch = scene ? -20 : 0;
@@ -200,7 +200,7 @@ function frameAsset() {
  * @param {string} name
  */
 async function open(source, name) {
-    if (!app || !world) throw new Error('the demo is not started');
+    if (!engine || !world) throw new Error('the demo is not started');
     hideError();
     const splatFile = /^(.*)\.(ply|splat|ksplat|spz|sog|json)$/i.exec(name);
     if (splatFile) {
@@ -212,7 +212,7 @@ async function open(source, name) {
     $('asset').textContent = `loading ${name}…`;
     let next;
     try {
-        next = await DemoAsset.load(app, world, source, name, PHYSICS);
+        next = await DemoAsset.load(engine, world, source, name, PHYSICS);
     } catch (err) {
         $('asset').textContent = assetLabel;
         showError(err);
@@ -252,6 +252,7 @@ function info() {
         })) ?? [],
         objects: objects(),
         axis: 'xyz'[state.axis],
+        engine: ENGINE,
         backend,
         software,
         gpuTimer: !!timer?.available,
@@ -269,7 +270,7 @@ const objects = () => current?.describe() ?? null;
 /** The stats panel's text. */
 function stats() {
     if (!current) return '';
-    return statsText({ asset: current, timer, software, backend, stepMs, fps: app?.stats?.frame?.fps ?? 0, paused });
+    return statsText({ asset: current, timer, software, backend, stepMs, fps: engine?.fps() ?? 0, paused, engine: ENGINE });
 }
 
 function updateStats() {
@@ -281,39 +282,14 @@ function updateStats() {
 async function start() {
     const canvas = /** @type {HTMLCanvasElement} */ ($('canvas'));
     if (TEST) document.body.classList.add('test');
-    app = new pc.Application(canvas, {
-        graphicsDeviceOptions: { deviceTypes: ['webgl2'], antialias: false, alpha: false, preserveDrawingBuffer: TEST },
-    });
-    app.setCanvasFillMode(pc.FILLMODE_FILL_WINDOW);
-    app.setCanvasResolution(pc.RESOLUTION_AUTO);
-    window.addEventListener('resize', () => app.resizeCanvas());
-    const gl = app.graphicsDevice.gl;
-    const dbg = gl?.getExtension('WEBGL_debug_renderer_info');
-    const renderer = gl ? String(dbg ? gl.getParameter(dbg.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER)) : '';
-    software = /swiftshader|llvmpipe|software/i.test(renderer);
-    backend = gl ? `WebGL2, ${renderer}` : app.graphicsDevice.deviceType;
+    const { createEngine } = ENGINE === 'three' ? await import('./engine-three.js') : await import('./engine-playcanvas.js');
+    engine = await createEngine(canvas, { test: TEST });
+    software = engine.software;
+    backend = engine.backend;
+    const camera = engine.camera;
 
-    const camera = new pc.Entity('camera');
-    camera.addComponent('camera', {
-        clearColor: TEST ? new pc.Color(0, 0, 0) : new pc.Color(0.106, 0.114, 0.133),
-        fov: 35, nearClip: 0.01, farClip: 1000,
-    });
-    app.root.addChild(camera);
-    const light = new pc.Entity('light');
-    light.addComponent('light', { type: 'directional', intensity: 1.2 });
-    light.setEulerAngles(50, 30, 0);
-    app.root.addChild(light);
-    app.scene.ambientLight = new pc.Color(0.35, 0.35, 0.4);
-    if (!TEST) {
-        ground = new pc.Entity('ground');
-        const material = new pc.StandardMaterial();
-        material.diffuse = new pc.Color(0.32, 0.34, 0.38);
-        material.update();
-        ground.addComponent('render', { type: 'plane', material });
-        app.root.addChild(ground);
-    }
     orbit = new OrbitCamera(camera);
-    timer = new RemapTimer(app, (gpu) => new RemapProbe(gpu));
+    timer = engine.makeTimer();
     grabber = new Grabber(canvas, camera, orbit, () => current, {
         onGrab: () => {
             shake?.stop();
@@ -329,8 +305,8 @@ async function start() {
     const Jolt = await initJolt();
     world = new PhysicsWorld(Jolt);
 
-    const wireColor = new pc.Color(0.3, 1, 0.55, 1);
-    app.on('update', (/** @type {number} */ dt) => {
+    const wireColor = [0.3, 1, 0.55];
+    engine.onUpdate((dt) => {
         // the extent the previous frame showed
         watch.frame(current && current.bodies.length ? current.syncedBounds().size : null);
         timer?.update(current ? current.bodies.map((b) => b.splat) : []);
@@ -367,8 +343,8 @@ async function start() {
         if (input('wire').checked) current.drawWireframe(wireColor);
     });
     setInterval(updateStats, 250);
-    app.scene.on('gsplat:sorted', () => { watch.sorts++; });   // the engine's sorts (deformed poses and camera moves)
-    app.start();
+    engine.onSorted(() => { watch.sorts++; });   // the engine's sorts (deformed poses and camera moves)
+    engine.start();
     bindUi();
 
     /** @type {{asset?: string|null}} */
@@ -503,10 +479,7 @@ const api = {
      * Where world points land on the canvas (CSS pixels, y down).
      * @param {number[][]} points
      */
-    toScreen: (points) => points.map((p) => {
-        const s = /** @type {any} */ (grabber?.camera.camera).worldToScreen(new pc.Vec3(p[0], p[1], p[2]));
-        return [s.x, s.y];
-    }),
+    toScreen: (points) => points.map((p) => /** @type {import('./engine-playcanvas.js').Engine} */ (engine).camera.toScreen(p)),
     /** Current world-space size [x, y, z] of the anchor meshes. */
     extent: () => (current && current.bodies.length ? current.bounds().size : null),
     /** Pause (true) or resume (false) the physics. @param {boolean} [on] */
@@ -591,7 +564,7 @@ const api = {
      * True when the picture shows the current state: no change waits for the next frame and no
      * body waits for the engine to sort its current pose (the plugin's sortPending).
      */
-    settled: () => !dirty && (!current || current.bodies.every((b) => !b.splat.sortPending)),
+    settled: () => !dirty && !!engine?.idle() && (!current || current.bodies.every((b) => !b.splat.sortPending)),
     /** The error shown on the page, or null. */
     error: () => ($('error').classList.contains('show') ? { text: $('error').textContent, code: $('error').dataset.code || null } : null),
 };

@@ -1,9 +1,10 @@
-// One loaded asset of the demo: its anchored splats (GPU remap, @gsverse/web/playcanvas), one
+// One loaded asset of the demo: its anchored splats (GPU remap, by the engine adapter:
+// engine-playcanvas.js or engine-three.js), one
 // Jolt soft body per anchor mesh (physics.js), and the per-frame link between them.
 //
 // The soft bodies live in world space. Each frame the anchor vertices are read back through each
 // body's embedding (physmesh.js), taken to the splat's local space with the inverse of the splat
-// entity's world matrix, and handed to AnchoredSplat.setVertices; the remap pass moves the splats
+// node's world matrix, and handed to AnchoredSplat.setVertices; the remap pass moves the splats
 // on the next frame. Plain (unanchored) splats of the asset are never touched.
 //
 // A scene with physics records (the plugin's readPhysics: KHR_physics_rigid_bodies) builds its
@@ -11,7 +12,6 @@
 // and static -> a Jolt rigid body (rigid.js) that drives the splat node's transform (no remap);
 // its ground box replaces the demo's own ground. An asset without records is all soft bodies.
 
-import { loadAnchoredAsset } from '@gsverse/web/playcanvas';
 import { invertInto, readPhysics } from '@gsverse/web';
 import { SoftBodyMesh, bounds } from './physics.js';
 import { RigidObject, decomposeAffine } from './rigid.js';
@@ -53,7 +53,8 @@ function uniqueEdges(faces) {
 
 /**
  * @typedef {object} Body
- * @property {import('@gsverse/web/playcanvas').AnchoredSplat} splat
+ * @property {any} splat  the plugin's anchored splat
+ * @property {import('./engine-playcanvas.js').SplatNode} node  its node
  * @property {SoftBodyMesh} soft
  * @property {Float64Array} toWorld  splat node world matrix (column-major)
  * @property {Float64Array} toLocal  its inverse
@@ -76,17 +77,19 @@ function inverse(m) {
     return out;
 }
 
+/** @typedef {import('./engine-playcanvas.js').Engine} Engine */
+
 export class DemoAsset {
     /**
      * Load an asset (URL or bytes) and build one soft body per anchored primitive.
      * Refused assets throw AnchorError before anything is added to the scene.
-     * @param {any} app PlayCanvas app
+     * @param {Engine} engine the engine adapter
      * @param {import('./physics.js').PhysicsWorld} world
      * @param {string|Uint8Array} source
      * @param {string} name
      * @param {import('./physics.js').SoftBodyOptions} [physics] soft-body options (physics mesh kind, budget, ...)
      */
-    static async load(app, world, source, name, physics = {}) {
+    static async load(engine, world, source, name, physics = {}) {
         let bytes = source;
         if (typeof source === 'string') {
             const response = await fetch(source);
@@ -94,40 +97,35 @@ export class DemoAsset {
             bytes = new Uint8Array(await response.arrayBuffer());
         }
         const records = readPhysics(/** @type {Uint8Array} */ (bytes), { name });     // refusals throw here
-        const loaded = await loadAnchoredAsset(app, bytes, { name });
+        const loaded = await engine.load(/** @type {Uint8Array} */ (bytes), name);
         try {
-            return new DemoAsset(app, world, loaded, name, physics, records);
+            return new DemoAsset(engine, world, loaded, name, physics, records);
         } catch (err) {
             for (const s of loaded.anchored) s.destroy();
-            loaded.root.destroy();
-            if (loaded.asset) {
-                app.assets.remove(loaded.asset);
-                loaded.asset.unload();
-            }
+            loaded.dispose();
             throw err;
         }
     }
 
     /**
-     * @param {any} app
+     * @param {Engine} engine
      * @param {import('./physics.js').PhysicsWorld} world
-     * @param {{root: any, anchored: any[], plain: any[], asset: any, animations?: {index: number, name: string, duration: number}[]}} loaded
+     * @param {import('./engine-playcanvas.js').Loaded} loaded
      * @param {string} name
      * @param {import('./physics.js').SoftBodyOptions} [physics]
      * @param {import('@gsverse/web').PhysicsScene} [records] the file's physics records
      */
-    constructor(app, world, loaded, name, physics = {}, records = { objects: [], shapes: [] }) {
-        this.app = app;
+    constructor(engine, world, loaded, name, physics = {}, records = { objects: [], shapes: [] }) {
+        this.engine = engine;
         this.world = world;
         this.name = name;
-        this.root = loaded.root;
-        this.asset = loaded.asset;
+        this.loaded = loaded;
         this.plain = loaded.plain;
         /** the file's animations of its animated anchor meshes ([] when none) */
         this.animations = loaded.animations ?? [];
         /** @type {Body[]} the soft bodies */
         this.bodies = [];
-        /** @type {{splat: any, rigid: RigidObject}[]} the rigid, kinematic and static objects */
+        /** @type {{splat: any, node: import('./engine-playcanvas.js').SplatNode, rigid: RigidObject}[]} the rigid, kinematic and static objects */
         this.rigids = [];
         /** whether the file has physics records: a scene (gravity on, its own ground) */
         this.isScene = records.objects.length > 0 || records.shapes.length > 0;
@@ -136,7 +134,7 @@ export class DemoAsset {
         // one simulation frame for the whole asset: about one unit large, centred
         const all = [], before = { origin: world.origin, unit: world.unit };
         for (const splat of loaded.anchored) {
-            const m = Float64Array.from(splat.entity.getWorldTransform().data);
+            const m = engine.node(splat).matrix();
             all.push(...transformPoints(m, splat.prim.anchorMesh.vertices, new Float32Array(splat.prim.anchorMesh.vertices.length)));
         }
         if (all.length) {
@@ -165,10 +163,11 @@ export class DemoAsset {
      */
     build(world, anchored, physics, records) {
         for (const splat of anchored) {
-            const toWorld = Float64Array.from(splat.entity.getWorldTransform().data);
+            const node = this.engine.node(splat);
+            const toWorld = node.matrix();
             const object = records.objects.find((o) => o.node === splat.prim.node);
             if (object && object.kind !== 'soft') {
-                this.rigids.push({ splat, rigid: new RigidObject(world, object, toWorld) });
+                this.rigids.push({ splat, node, rigid: new RigidObject(world, object, toWorld) });
                 continue;
             }
             const mesh = splat.prim.anchorMesh;
@@ -177,7 +176,7 @@ export class DemoAsset {
             const edges = uniqueEdges(soft.faces);
             if (this.isScene) soft.setGravity(1);
             this.bodies.push({
-                splat, soft, toWorld, toLocal: inverse(toWorld),
+                splat, node, soft, toWorld, toLocal: inverse(toWorld),
                 world: worldVerts, local: new Float32Array(mesh.vertices.length), posed: new Float32Array(mesh.vertices.length),
                 edges, lines: new Float32Array(edges.length * 3), wire: new Float32Array(3 * soft.count),
             });
@@ -189,7 +188,7 @@ export class DemoAsset {
         let anchored = 0, plain = 0;
         for (const b of this.bodies) anchored += b.splat.prim.count;
         for (const r of this.rigids) anchored += r.splat.prim.count;
-        for (const e of this.plain) plain += e.gsplat?.resource?.numSplats ?? e.gsplat?.asset?.resource?.numSplats ?? 0;
+        for (const e of this.plain) plain += e.gsplat?.resource?.numSplats ?? e.gsplat?.asset?.resource?.numSplats ?? e.packedSplats?.numSplats ?? 0;
         return { anchored, plain };
     }
 
@@ -251,11 +250,10 @@ export class DemoAsset {
      * @param {{index: number, time: number}|null} [pose]
      */
     sync(pose = null) {
-        for (const { splat, rigid } of this.rigids) {
+        for (const { node, rigid } of this.rigids) {
             if (rigid.kind === 'static') continue;
             const { translation: t, rotation: q } = rigid.transform();
-            splat.entity.setPosition(t[0], t[1], t[2]);
-            splat.entity.setRotation(q[0], q[1], q[2], q[3]);
+            node.setPose(t, q);
         }
         for (const b of this.bodies) {
             b.soft.readAnchorVertices(b.world);
@@ -302,7 +300,7 @@ export class DemoAsset {
 
     /**
      * Draw the physics meshes as wireframes (immediate lines, current physics positions).
-     * @param {any} color pc.Color
+     * @param {number[]} color RGB, 0..1
      */
     drawWireframe(color) {
         for (const b of this.bodies) {
@@ -312,7 +310,7 @@ export class DemoAsset {
                 const v = e[i];
                 l[3 * i] = p[3 * v]; l[3 * i + 1] = p[3 * v + 1]; l[3 * i + 2] = p[3 * v + 2];
             }
-            this.app.drawLineArrays(/** @type {any} */ (l), color, false);
+            this.engine.drawLines(l, color);
         }
     }
 
@@ -339,7 +337,7 @@ export class DemoAsset {
     }
 
     /**
-     * Place the physics ground and the visible `plane` (an entity, or null): the file's ground box
+     * Place the physics ground and the visible `plane` (the engine's ground, or null): the file's ground box
      * when it has one (the plane on its top face), else a wide box a little below `rb` (bounds).
      * @param {import('./physics.js').PhysicsWorld} world @param {any} plane
      * @param {{center: number[], size: number[], min: number[]}} rb
@@ -348,14 +346,12 @@ export class DemoAsset {
         const box = this.groundBox();
         if (box) {
             world.setGroundBox(box.center, box.half, box.rotation);
-            plane?.setPosition(box.center[0], box.top, box.center[2]);
-            plane?.setLocalScale(2 * box.half[0], 1, 2 * box.half[2]);
+            plane?.place(box.center[0], box.top, box.center[2], 2 * box.half[0], 2 * box.half[2]);
             return;
         }
         const size = Math.max(...rb.size) || 1, y = rb.min[1] - 0.2 * rb.size[1];
         world.setGround(y, 20 * size, [rb.center[0], rb.center[2]]);
-        plane?.setPosition(rb.center[0], y, rb.center[2]);
-        plane?.setLocalScale(20 * size, 1, 20 * size);
+        plane?.place(rb.center[0], y, rb.center[2], 20 * size, 20 * size);
     }
 
     /**
@@ -366,14 +362,14 @@ export class DemoAsset {
     describe() {
         if (!this.isScene) return null;
         const out = [];
-        for (const { splat, rigid } of this.rigids) {
-            const p = splat.entity.getPosition(), q = splat.entity.getRotation(), b = rigid.bounds();
-            out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: [p.x, p.y, p.z],
-                rotation: [q.x, q.y, q.z, q.w], min: b.min, max: b.max, velocity: rigid.velocity() });
+        for (const { node, rigid } of this.rigids) {
+            const b = rigid.bounds();
+            out.push({ name: rigid.object.name, kind: rigid.kind, node: rigid.object.node, position: node.position(),
+                rotation: node.rotation(), min: b.min, max: b.max, velocity: rigid.velocity() });
         }
         for (const b of this.bodies) {
-            const p = b.splat.entity.getPosition(), r = bounds(b.soft.readAnchorVertices());
-            out.push({ name: b.splat.entity.name, kind: 'soft', node: b.splat.prim.node, position: [p.x, p.y, p.z],
+            const r = bounds(b.soft.readAnchorVertices());
+            out.push({ name: b.node.name, kind: 'soft', node: b.splat.prim.node, position: b.node.position(),
                 rotation: null, min: r.min, max: r.max, velocity: null });
         }
         return { objects: out, groundTop: this.groundBox()?.top ?? null };
@@ -401,10 +397,6 @@ export class DemoAsset {
         }
         this.bodies = [];
         this.rigids = [];
-        this.root.destroy();
-        if (this.asset) {
-            this.app.assets.remove(this.asset);
-            this.asset.unload();
-        }
+        this.loaded.dispose();
     }
 }
