@@ -78,9 +78,9 @@ def captures(tmp_path_factory) -> list[Path]:
     return assets
 
 
-def _stability(assets: list[Path], name: str) -> dict:
+def _stability(assets: list[Path], name: str, engine: str = "playcanvas") -> dict:
     out = artifacts_dir(name)
-    proc = run_node([DEMO / "test" / "stability.mjs", out, *assets], cwd=ROOT, timeout=3600)
+    proc = run_node([DEMO / "test" / "stability.mjs", out, *assets, "--engine", engine], cwd=ROOT, timeout=3600)
     assert proc.returncode == 0, _explain(proc)
     results = json.loads((out / "results.json").read_text())
     checks = results["checks"]
@@ -95,11 +95,13 @@ def _stability(assets: list[Path], name: str) -> dict:
     return results
 
 
-def test_demo_stays_stable_on_the_example(example):
-    """The shipped capsule: slider jumps 1.0 -> 1.7 -> 0.6, let go, drop, shake and a fast drag in
-    Chromium, extent and silhouette bounded, the page rendering, no page errors."""
+@pytest.mark.parametrize("engine", ["playcanvas", "three"])
+def test_demo_stays_stable_on_the_example(example, engine):
+    """The shipped capsule, on each engine (?engine=three: three.js + Spark): slider jumps
+    1.0 -> 1.7 -> 0.6, let go, drop, shake and a fast drag in Chromium, extent and silhouette
+    bounded, the page rendering, no page errors."""
     require_web_tools(browser=True)
-    _stability([example], "demo-stability-example")
+    _stability([example], "demo-stability-example" if engine == "playcanvas" else f"demo-stability-example-{engine}", engine)
 
 
 def test_demo_stays_stable_on_real_captures(captures):

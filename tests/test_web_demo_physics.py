@@ -66,13 +66,15 @@ def test_the_scene_in_node():
     assert "# fail 0" in proc.stdout and "# skipped 0" in proc.stdout, _explain(proc)
 
 
-def test_the_scene_in_the_demo_falls_stretches_and_keeps_its_background():
-    """scene.mjs in Chromium: dropped, after 240 fixed steps the chair's node fell and its hull
-    rests on the ground, the lamp stayed, a scripted 1.5x pull stretched the pillow (anchor mesh
-    and pixels), the background did not change; the PNGs stay as artifacts."""
+@pytest.mark.parametrize("engine", ["playcanvas", "three"])
+def test_the_scene_in_the_demo_falls_stretches_and_keeps_its_background(engine):
+    """scene.mjs in Chromium, on each engine (?engine=three: three.js + Spark): dropped, after 240
+    fixed steps the chair's node fell and its hull rests on the ground, the lamp stayed, a scripted
+    1.5x pull stretched the pillow (anchor mesh and pixels), the background did not change; the
+    PNGs stay as artifacts."""
     require_web_tools(browser=True)
-    out = artifacts_dir("demo-physics-scene")
-    proc = run_node([DEMO / "test" / "scene.mjs", out], cwd=ROOT)
+    out = artifacts_dir("demo-physics-scene" if engine == "playcanvas" else f"demo-physics-scene-{engine}")
+    proc = run_node([DEMO / "test" / "scene.mjs", out, "--engine", engine], cwd=ROOT)
     assert proc.returncode == 0, _explain(proc)
     checks = json.loads((out / "results.json").read_text())["checks"]
     names = {c["name"] for c in checks if c["ok"]}

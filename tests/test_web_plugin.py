@@ -167,12 +167,14 @@ def test_demo_physics_in_node():
     assert "# fail 0" in proc.stdout, _explain(proc)
 
 
-def test_demo_stretch_and_twist_screenshots():
-    """The demo in Chromium: a scripted 1.5x pull grows the rendered splats' extent about 1.5x,
-    twists turn them, nothing is blank or exploded; the PNGs stay as artifacts."""
+@pytest.mark.parametrize("engine", ["playcanvas", "three"])
+def test_demo_stretch_and_twist_screenshots(engine):
+    """The demo in Chromium, on each engine (?engine=three: three.js + Spark): a scripted 1.5x
+    pull grows the rendered splats' extent about 1.5x, twists turn them, nothing is blank or
+    exploded; the PNGs stay as artifacts."""
     require_web_tools(browser=True)
-    out = artifacts_dir("demo-screenshots")
-    proc = run_node([DEMO / "test" / "screenshots.mjs", out], cwd=ROOT)
+    out = artifacts_dir("demo-screenshots" if engine == "playcanvas" else f"demo-screenshots-{engine}")
+    proc = run_node([DEMO / "test" / "screenshots.mjs", out, "--engine", engine], cwd=ROOT)
     assert proc.returncode == 0, _explain(proc)
     results = json.loads((out / "results.json").read_text())
     assert results, results

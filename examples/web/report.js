@@ -72,7 +72,8 @@ export function physicsLabel(soft) {
 /**
  * The stats panel: what each figure measures is said next to it.
  * @param {{asset: DemoAsset, timer: RemapTimer|null, software: boolean, backend: string,
- *          stepMs: number, fps: number, paused: boolean}} s
+ *          stepMs: number, fps: number, paused: boolean, engine?: string}} s  `engine` 'three':
+ *          no remap timer on that engine (gputimer.js reads PlayCanvas's passes)
  */
 export function statsText(s) {
     const { asset, timer, software } = s;
@@ -86,6 +87,9 @@ export function statsText(s) {
                 + `${software ? '; on this software rasterizer the timer counts CPU emulation, not GPU time' : ''})`
             : timer.probeError ? `remap: not timed (${timer.probeError})` : 'remap: waiting for a GPU timing');
         if (timer.workBufferMs !== null) lines.push(`  work-buffer pass: ${timer.workBufferMs.toFixed(3)} ${unit} (engine copy of every splat + remap)`);
+    } else if (s.engine === 'three') {
+        lines.push(`remap: GPU time n/a (not measurable here: the remap timer is PlayCanvas's); `
+            + `${splats.toLocaleString('en')} splats remapped on the GPU each frame they move`);
     } else {
         lines.push(`remap: GPU time not measurable here (no GPU timer queries${software ? ' on the software rasterizer' : ''}); `
             + `${splats.toLocaleString('en')} splats remapped on the GPU each frame they move`);

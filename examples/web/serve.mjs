@@ -6,7 +6,8 @@
 //
 // Serves the demo page (this folder), the plugin sources (plugins/web/src), and the two browser
 // builds the page needs from plugins/web/node_modules (the PlayCanvas ES module build and the
-// jolt-physics wasm-compat build) under /vendor/, mapped by the page's import map. The asset
+// jolt-physics wasm-compat build; for ?engine=three, three.js's build and addons and Spark's
+// build) under /vendor/, mapped by the page's import map. The asset
 // (default: examples/web/capsule.glb, shipped) is served at /asset/NAME; the page reads /config.json
 // to find it. Only files under those roots are served (no path traversal), only on 127.0.0.1,
 // and nothing is fetched from the network.
@@ -32,6 +33,12 @@ const DEFAULT_PORT = 8123;
 const VENDOR = {
     'playcanvas.mjs': path.join(MODULES, 'playcanvas', 'build', 'playcanvas.mjs'),
     'jolt-physics.wasm-compat.js': path.join(MODULES, 'jolt-physics', 'dist', 'jolt-physics.wasm-compat.js'),
+};
+
+/** Folders served under /vendor/NAME/ (import-map targets that import their neighbours). */
+const VENDOR_DIRS = {
+    three: path.join(MODULES, 'three'),
+    spark: path.join(MODULES, '@sparkjsdev', 'spark', 'dist'),
 };
 
 const TYPES = {
@@ -77,6 +84,11 @@ function route(pathname, state) {
         };
     }
     if (pathname.startsWith('/asset/')) return state.asset ? { file: state.asset } : null;
+    const dir = /^\/vendor\/(three|spark)\/(.*)$/.exec(pathname);
+    if (dir) {
+        const file = safeJoin(VENDOR_DIRS[/** @type {keyof typeof VENDOR_DIRS} */ (dir[1])], dir[2]);
+        return file ? { file } : null;
+    }
     if (pathname.startsWith('/vendor/')) {
         const file = VENDOR[/** @type {keyof typeof VENDOR} */ (pathname.slice(8))];
         return file ? { file } : null;

@@ -3,8 +3,9 @@
 // kinematic, a ground box, a floor of plain background splats; gsverse-convert --physics
 // --ground) opened in test mode (fixed camera, physics paused).
 //
-//   node examples/web/test/scene.mjs OUTDIR
+//   node examples/web/test/scene.mjs OUTDIR [--engine playcanvas|three]
 //
+// The same checks run on either engine of the demo (?engine=three: three.js + Spark).
 // The physics runs a fixed number of fixed steps (gsverseDemo.simulate: 1/60 s each, no wall
 // clock), then a scripted pull of the soft body (pull: its ends pinned, a fixed number of steps).
 // Checks, from the demo's state and from the pictures:
@@ -42,9 +43,12 @@ const STRETCH = 1.3;
 /** Jolt's default penetration slop, in simulation units (1 simulation unit = the scene's size) */
 const SLOP = 0.02;
 
-const outDir = process.argv[2];
-if (!outDir) {
-    process.stderr.write('usage: scene.mjs OUTDIR\n');
+const args = process.argv.slice(2);
+const engineAt = args.indexOf('--engine');
+const engine = engineAt >= 0 ? args[engineAt + 1] : 'playcanvas';
+const outDir = args.find((a, i) => !a.startsWith('--') && !(engineAt >= 0 && i === engineAt + 1));
+if (!outDir || !['playcanvas', 'three'].includes(engine)) {
+    process.stderr.write('usage: scene.mjs OUTDIR [--engine playcanvas|three]\n');
     process.exit(2);
 }
 if (!fs.existsSync(SCENE)) {
@@ -106,8 +110,9 @@ try {
     page.on('pageerror', (/** @type {Error} */ e) => pageErrors.push(e.message));
     page.on('console', (/** @type {any} */ m) => { if (m.type() === 'error') pageErrors.push(m.text()); });
     page.setDefaultTimeout(120000);
-    await page.goto(`${server.url}?test&asset=/scene.glb`);
+    await page.goto(`${server.url}?test&asset=/scene.glb${engine === 'three' ? '&engine=three' : ''}`);
     const info = await page.evaluate(() => /** @type {any} */ (window).gsverseDemo.ready);
+    check('the engine asked for', info.engine === engine, `${info.engine}`);
     process.stdout.write(`scene: ${info.asset}, ${info.splats.anchored} anchored splats, ${info.splats.plain} plain, backend ${info.backend}\n`);
     /** @param {string} expr @param {any[]} a */
     const call = (expr, ...a) => page.evaluate((/** @type {[string, any[]]} */ [e, x]) => /** @type {any} */ (window).gsverseDemo[e](...x), [expr, a]);

@@ -2,8 +2,9 @@
 // Screenshot test of the web demo in headless Chromium (playwright-core + the system chromium,
 // WebGL2 on SwiftShader where there is no GPU).
 //
-//   node examples/web/test/screenshots.mjs OUTDIR [--readme]
+//   node examples/web/test/screenshots.mjs OUTDIR [--readme] [--engine playcanvas|three]
 //
+// The same checks run on either engine of the demo (?engine=three: three.js + Spark).
 // Loads the demo with the shipped example (examples/web/capsule.glb) in test mode (fixed
 // front camera, black background, physics paused; scripted manipulations drive the soft body's
 // end caps kinematically and settle it with a fixed number of fixed steps, so the poses are
@@ -36,10 +37,12 @@ function die(msg) {
 }
 
 const args = process.argv.slice(2);
-const outDir = args.find((a) => !a.startsWith('--'));
 const readme = args.includes('--readme');
-if (!outDir) {
-    process.stderr.write('usage: screenshots.mjs OUTDIR [--readme]\n');
+const engineAt = args.indexOf('--engine');
+const engine = engineAt >= 0 ? args[engineAt + 1] : 'playcanvas';
+const outDir = args.find((a, i) => !a.startsWith('--') && !(engineAt >= 0 && i === engineAt + 1));
+if (!outDir || !['playcanvas', 'three'].includes(engine)) {
+    process.stderr.write('usage: screenshots.mjs OUTDIR [--readme] [--engine playcanvas|three]\n');
     process.exit(2);
 }
 if (!fs.existsSync(DEFAULT_ASSET)) die(`${DEFAULT_ASSET} is missing (it ships with the repository)`);
@@ -97,9 +100,11 @@ try {
     page.on('pageerror', (/** @type {Error} */ e) => pageErrors.push(e.message));
     page.on('console', (/** @type {any} */ m) => { if (m.type() === 'error') pageErrors.push(m.text()); });
     page.setDefaultTimeout(120000);
-    await page.goto(`${server.url}?test`);
+    const query = engine === 'three' ? '&engine=three' : '';
+    await page.goto(`${server.url}?test${query}`);
     const info = await page.evaluate(() => /** @type {any} */ (window).gsverseDemo.ready);
-    process.stdout.write(`demo: ${info.asset}, ${info.splats.anchored} anchored splats, backend ${info.backend}\n`);
+    process.stdout.write(`demo: ${info.asset}, ${info.splats.anchored} anchored splats, engine ${info.engine}, backend ${info.backend}\n`);
+    check('the engine asked for', info.engine === engine, `${info.engine}`);
 
     /** The frame once the splats are drawn and stable (browser.mjs). @param {string} name */
     const shot = (name) => stableShot(page, path.join(outDir, `${name}.png`));
@@ -205,11 +210,11 @@ try {
     // the demo as a person sees it, mid-stretch (for the README)
     const view = await context.newPage();
     await view.setViewportSize({ width: 1000, height: 640 });
-    await view.goto(server.url);
+    await view.goto(engine === 'three' ? `${server.url}?engine=three` : server.url);
     await view.evaluate(() => /** @type {any} */ (window).gsverseDemo.ready);
     await view.evaluate(() => /** @type {any} */ (window).gsverseDemo.pull('y', 1.5));
     const demoPng = await view.screenshot({ path: path.join(outDir, 'demo-stretch.png') });
-    if (readme) fs.writeFileSync(path.join(HERE, '..', 'screenshot-stretch.png'), demoPng);
+    if (readme && engine === 'playcanvas') fs.writeFileSync(path.join(HERE, '..', 'screenshot-stretch.png'), demoPng);
     await view.close();
 } catch (err) {
     failed = true;
