@@ -94,7 +94,9 @@ export function statsText(s) {
         lines.push(`remap: GPU time not measurable here (no GPU timer queries${software ? ' on the software rasterizer' : ''}); `
             + `${splats.toLocaleString('en')} splats remapped on the GPU each frame they move`);
     }
-    lines.push(`setVertices: ${cpu.total.toFixed(2)} ms CPU (of it deformed sort centres ${cpu.sort.toFixed(2)} ms)`);
+    lines.push(s.engine === 'three'
+        ? 'setVertices: not timed on three.js (a texture upload; Spark regenerates and sorts the splats in its own update)'
+        : `setVertices: ${cpu.total.toFixed(2)} ms CPU (of it deformed sort centres ${cpu.sort.toFixed(2)} ms)`);
     const phys = asset.bodies.map((b) => physicsLabel(b.soft)).join('; ');
     lines.push(`physics: ${s.stepMs.toFixed(2)} ms/step, ${phys}`);
     const shortBackend = software ? 'WebGL2 · software rasterizer (SwiftShader)' : s.backend;
