@@ -57,6 +57,24 @@ def test_the_shipped_demo_asset_is_what_the_converter_writes(tmp_path):
     np.testing.assert_array_equal(a.anchoring.anchors.face_index, b.anchoring.anchors.face_index, err_msg=hint)
 
 
+def test_only_the_engine_adapters_of_the_demo_import_an_engine():
+    """examples/web runs on PlayCanvas or three.js + Spark behind engine-playcanvas.js and
+    engine-three.js: no other module of the page imports an engine, a plugin's engine entry point
+    or the other adapter, so the physics, controls and scenes are the same on both."""
+    import re
+
+    # static and dynamic imports in the code; comments (JSDoc type imports among them) load nothing
+    comments = re.compile(r"/\*.*?\*/|^\s*//[^\n]*", re.S | re.M)
+    engines = re.compile(r"""(?:from|import)\s*\(?\s*['"](playcanvas|three|@sparkjsdev/spark|@gsverse/web/(?:playcanvas|three)[^'"]*|\./engine-(?:playcanvas|three)\.js)['"]""")
+    found = {p.name: sorted(set(engines.findall(comments.sub("", p.read_text(encoding="utf-8")))))
+             for p in sorted(DEMO.glob("*.js"))}
+    assert found["engine-playcanvas.js"] == ["@gsverse/web/playcanvas", "@gsverse/web/playcanvas/probe.js", "playcanvas"]
+    assert found["engine-three.js"] == ["@gsverse/web/three", "@sparkjsdev/spark", "three"]
+    assert found["main.js"] == ["./engine-playcanvas.js", "./engine-three.js"]     # picked by ?engine=
+    others = {name: hits for name, hits in found.items() if name not in ("engine-playcanvas.js", "engine-three.js", "main.js")}
+    assert others and not any(others.values()), others
+
+
 @pytest.fixture(scope="module")
 def captures(tmp_path_factory) -> list[Path]:
     """The real captures converted as a user does, without --mesh (the anchor mesh is
