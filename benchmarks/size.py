@@ -1,21 +1,26 @@
 """File size of anchored assets against plain ``KHR_gaussian_splatting`` (issue goals: float32
 anchors ≤ +35% at SH0 and ≤ +15% at SH3; quantized ≤ +15% at SH0 and ≤ +5% at SH3).
 
-    python -m benchmarks.size [--splats N] [--faces F] [--quick] [-v]
+    python -m benchmarks.size [--splats N] [--faces F] [--quick | --large] [-v]
 
-One synthetic object (default 1M splats on a 100k-face capsule, ``--quick`` 100k on 6k): the
+One synthetic object (default 200k splats on a 20k-face capsule, ``--large`` 1M on 100k,
+``--quick`` 100k on 6k): the
 splats sit on random faces with random barycentrics, normal offsets, rotations and scales, and
 their rest pose is the reference remap of those anchors. The same splats are written as GLB
 
 * plain KHR (no anchoring), float32 and with the rest ``ROTATION`` quantized to 16/8 bits;
 * anchored, explicit anchors (extension 1.1 layout), float32 and ``--quantize 16``/``8``;
-* anchored, compact anchors (1.2: ``faceCounts`` + derived ``local`` anchors), likewise;
+* anchored, compact anchors (1.2: ``faceCounts`` + derived ``local`` anchors; what
+  ``gsverse-convert`` writes by default), likewise;
 
 at SH degree 0 and 3. Each row gives the bytes, the overhead over plain float32 KHR and over
 plain KHR quantized the same way (the fair comparison for quantized rows: the rest pose shrinks
 in both), the goal, and the rest-pose check of spec §Outputs on the file read back (the worst
 |Δμ| and ‖ΔΣ‖_F in units of their tolerances; ≤ 1 holds). The anchored overhead includes the
-anchor mesh (FLOAT positions and indices). Sizes are deterministic: no timing is involved.
+anchor mesh (FLOAT positions and indices). A second table puts the three float32 files side
+by side per SH degree with their ratios (what ``gsverse-convert`` writes without
+``--quantize``: plain with ``--plain``, explicit with ``--anchors explicit``, compact by
+default). Sizes are deterministic: no timing is involved.
 """
 from __future__ import annotations
 
@@ -119,7 +124,9 @@ def run(n: int, faces: int, log=lambda msg: None) -> dict:
                     rest = _rest_check(path)
                     log(f"size: SH{degree} {encoding} {bits or 32}-bit {size:,} bytes "
                         f"({time.perf_counter() - t0:.1f} s with the rest check)")
-                    rows.append(dict(sh=degree, layout=f"anchored, {encoding}", bits=bits or 32,
+                    layout = f"anchored, {encoding}" + (" (default)" if encoding == "compact"
+                                                          else "")
+                    rows.append(dict(sh=degree, layout=layout, bits=bits or 32,
                                      bytes=size, over_float=100.0 * (size / plain[None] - 1),
                                      over_same=100.0 * (size / plain[bits] - 1),
                                      goal=GOALS[(degree, bits is not None)], rest=rest))
@@ -146,17 +153,38 @@ def markdown(res: dict) -> str:
           "shrinks the rest ROTATION only; explicit anchors keep a FLOAT ROTATION (their rest "
           "pose is the remap of the stored anchors) and FLOAT barycentrics where some leave "
           "[0, 1]."]
+    L += ["", *ratios(res)]
     return "\n".join(L)
+
+
+def ratios(res: dict) -> list[str]:
+    """The float32 files side by side per SH degree: plain KHR, anchored explicit (1.1 layout),
+    anchored compact (1.2, the default), and their ratios."""
+    L = ["Side by side (float32, what gsverse-convert writes without --quantize):", "",
+         "| SH | plain KHR | anchored explicit | anchored compact (default) | explicit / plain "
+         "| compact / plain | explicit / compact |",
+         "|---|---|---|---|---|---|---|"]
+    for degree in sorted({r["sh"] for r in res["rows"]}):
+        size = {r["layout"].split(" (")[0]: r["bytes"] for r in res["rows"]
+                if r["sh"] == degree and r["bits"] == 32}
+        plain, explicit, compact = (size["plain KHR"], size["anchored, explicit"],
+                                    size["anchored, compact"])
+        L.append(f"| {degree} | {plain:,} | {explicit:,} | {compact:,} | "
+                 f"{explicit / plain:.3f}× | {compact / plain:.3f}× | {explicit / compact:.3f}× |")
+    return L
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.size", description=__doc__.split("\n")[0])
-    p.add_argument("--splats", type=int, default=1_000_000)
-    p.add_argument("--faces", type=int, default=100_000)
-    p.add_argument("--quick", action="store_true", help="100k splats on about 6k faces")
+    p.add_argument("--splats", type=int, default=200_000)
+    p.add_argument("--faces", type=int, default=20_000)
+    size = p.add_mutually_exclusive_group()
+    size.add_argument("--quick", action="store_true", help="100k splats on about 6k faces")
+    size.add_argument("--large", action="store_true", help="1M splats on about 100k faces")
     p.add_argument("-v", "--verbose", action="store_true", help="progress lines on stderr")
     args = p.parse_args(argv)
-    n, faces = (100_000, 6_000) if args.quick else (args.splats, args.faces)
+    n, faces = ((100_000, 6_000) if args.quick else (1_000_000, 100_000) if args.large
+                else (args.splats, args.faces))
     res = run(n, faces, log=(lambda msg: print(msg, file=sys.stderr, flush=True))
               if args.verbose else (lambda msg: None))
     print(markdown(res))

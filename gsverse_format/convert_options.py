@@ -47,7 +47,9 @@ class ConvertOptions:
     mesh); ``watertight`` makes each anchor mesh a closed 2-manifold before binding;
     ``collider`` (``"hull"``) adds a collision mesh per anchor mesh. ``anchors`` is how glTF
     output stores the anchors (``"explicit"``, the version 1.1 layout, or ``"compact"``:
-    ``faceCounts`` and derived ``local`` anchors, extension 1.2); ``quantize`` (16 or 8) stores
+    ``faceCounts`` and derived ``local`` anchors, extension 1.2); ``None`` (default) is
+    compact, or explicit where compact cannot be written (``keep_order``, splats bound to
+    faces degenerate at rest), which a note says; ``quantize`` (16 or 8) stores
     what glTF output can quantize as normalized integers of that many bits
     (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`). An anchor mesh that does not fit
     its splats (:func:`gsverse_format.scene.judge_fit`) is a warning, an error with ``strict``.
@@ -87,7 +89,7 @@ class ConvertOptions:
     meshes: list[str] | None = None
     watertight: bool = False
     collider: str | None = None
-    anchors: str = "explicit"
+    anchors: str | None = None
     quantize: int | None = None
     strict: bool = False
     physics: list[str] | None = None
@@ -128,6 +130,9 @@ class ConvertSummary:
     dropped: int = 0
     profile: str | None = None
     deformation: str | None = None
+    #: How glTF output stores the anchors: ``"compact"`` (1.2) or ``"explicit"`` (1.1); None
+    #: for other outputs and for outputs without anchors.
+    anchors: str | None = None
     sh_degree: int = 0
     mesh_faces: int = 0
     degenerate_faces: int = 0
@@ -161,10 +166,13 @@ class ConvertSummary:
                f"SH degree {self.sh_degree}"]
         if self.profile:
             law = f", deformation {self.deformation}" if self.deformation else ""
+            layout = {"compact": "; compact anchors (extension 1.2)",
+                      "explicit": "; explicit anchors (extension 1.1 layout)"}.get(
+                          self.anchors or "", "")
             out.append(f"  {'binding    ' if self.plain_output else 'anchoring  '}profile "
                        f"{self.profile}{law}, {self.mesh_faces} faces "
                        f"({self.degenerate_faces} degenerate, never bound)"
-                       + ("; not written" if self.plain_output else ""))
+                       + ("; not written" if self.plain_output else layout))
         if self.distance:
             d = self.distance
             out.append(f"  distance   to mesh p50 {d['p50']:.3g}, p95 {d['p95']:.3g}, p99 {d['p99']:.3g}, "
@@ -262,8 +270,8 @@ def check_options(input_path: str, output_path: str, options: ConvertOptions) ->
 
 def check_encoding_options(output_path: str, options: ConvertOptions, out_format: str) -> None:
     """``--anchors`` and ``--quantize``: glTF output only; compact anchors group the splats by
-    face, which ``--keep-order`` forbids."""
-    if options.anchors not in ("explicit", "compact"):
+    face, which ``--keep-order`` forbids (the default layout then falls back to explicit)."""
+    if options.anchors not in (None, "explicit", "compact"):
         raise UsageError(f"--anchors must be explicit or compact, not {options.anchors!r}")
     if options.quantize is not None and options.quantize not in (16, 8):
         raise UsageError(f"--quantize must be 16 or 8, not {options.quantize}")

@@ -435,8 +435,9 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
         from .io.gltf.writer import QUANTIZE_BITS, quantize_notes
 
         quantize = QUANTIZE_BITS[options.quantize] if options.quantize is not None else None
-        encoding = {"quantize": quantize, "anchors": options.anchors}
-        summary.notes.extend(quantize_notes(asset, quantize, options.anchors))
+        layout = _anchor_layout(asset, options, summary)
+        encoding = {"quantize": quantize, "anchors": layout}
+        summary.notes.extend(quantize_notes(asset, quantize, layout))
     progress.stage(f"writing {os.path.basename(output_path)}")
     write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
                 bake_poses=poses, **encoding)
@@ -444,6 +445,23 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
     summary.output_bytes = os.path.getsize(output_path)
     summary.seconds = time.perf_counter() - start
     return summary
+
+
+def _anchor_layout(asset: SplatAsset, options: ConvertOptions, summary: ConvertSummary) -> str:
+    """How glTF output stores the anchors: ``options.anchors`` when given, else compact, or
+    explicit (with a note) where compact cannot be written; recorded in the summary."""
+    from .io.gltf.writer import compact_problem
+
+    layout = options.anchors or "compact"
+    if options.anchors is None and asset.anchored:
+        reason = ("--keep-order keeps the input's splat order, compact anchors group the "
+                  "splats by face" if options.keep_order else compact_problem(asset))
+        if reason is not None:
+            layout = "explicit"
+            summary.notes.append(f"wrote explicit anchors (extension 1.1 layout), not the "
+                                 f"default compact ones: {reason}")
+    summary.anchors = layout if asset.anchored else None
+    return layout
 
 
 def _require_poses_fit(asset: SplatAsset, poses: Any, poses_path: str, input_path: str) -> None:

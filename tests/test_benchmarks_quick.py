@@ -44,3 +44,34 @@ def test_convert_benchmark_quick():
     assert "| read the PLY (file frame) |" in text and "| write the GLB |" in text
     scaling = [line for line in text.splitlines() if line.startswith("| 10,000 |")]
     assert len(scaling) == 1 and "failed" not in scaling[0]
+
+
+
+def test_size_benchmark_puts_the_three_layouts_side_by_side():
+    """A small run of ``python -m benchmarks.size``: the side-by-side table has one row per SH
+    degree, and its sizes and ratios are those of the detailed rows (sizes are exact)."""
+    import re
+
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    out = subprocess.run([sys.executable, "-m", "benchmarks.size", "--splats", "3000",
+                          "--faces", "300"], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.splitlines()
+    detail = {}
+    for line in lines:     # | SH | layout | bits | bytes | ...
+        cells = [c.strip() for c in line.split("|")[1:-1]]
+        if len(cells) == 9 and cells[2] == "32":
+            detail[int(cells[0]), cells[1]] = int(cells[3].replace(",", ""))
+    side = [line for line in lines if re.match(r"\| [03] \| [0-9,]+ \|", line)]
+    assert len(side) == 2
+    for line in side:
+        cells = line.strip("| ").split(" | ")
+        degree, plain, explicit, compact = int(cells[0]), *(int(c.replace(",", ""))
+                                                           for c in cells[1:4])
+        assert (detail[degree, "plain KHR"], detail[degree, "anchored, explicit"],
+                detail[degree, "anchored, compact (default)"]) == (plain, explicit, compact)
+        assert plain < compact < explicit
+        assert cells[4:] == [f"{explicit / plain:.3f}×", f"{compact / plain:.3f}×",
+                             f"{explicit / compact:.3f}×"]

@@ -19,7 +19,7 @@ from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.examples import example_mesh, example_splats
 from gsverse_format.frames import local_frames
 from gsverse_format.io.gltf import asset_to_gltf, read_gltf, write_gltf
-from gsverse_format.io.gltf.writer import QUANTIZE_BITS, quantize_notes
+from gsverse_format.io.gltf.writer import QUANTIZE_BITS, compact_problem, quantize_notes
 from gsverse_format.model import (Anchoring, LocalAnchors, SplatAsset, SplatCloud,
                                   SplatPrimitive, TriangleMesh)
 from gsverse_format.remapping.reference import remap
@@ -194,7 +194,7 @@ def test_face_counts_take_the_smallest_type(tmp_path):
     assert doc["accessors"][ext["faceCounts"]]["componentType"] == 5121
 
 
-def test_compact_refuses_splats_on_faces_degenerate_at_rest():
+def test_compact_refuses_splats_on_faces_degenerate_at_rest(tmp_path, capsys):
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [2, 0, 0]], np.float32)
     mesh = TriangleMesh(v, np.array([[0, 1, 2], [0, 1, 3]]))   # face 1 is a segment
     anchors = LocalAnchors([0, 1], [[0.2, 0.2], [0.3, 0.0]], [0.0, 0.0],
@@ -203,10 +203,24 @@ def test_compact_refuses_splats_on_faces_degenerate_at_rest():
     cloud = SplatCloud(rest.means, rest.rotations, rest.scales, np.ones(2), np.zeros((2, 1, 3)))
     asset = SplatAsset([SplatPrimitive(cloud, Anchoring(mesh, anchors))])
     asset_to_gltf(asset)                                       # explicit: allowed (remapped)
+    assert "primitive 0: 1 splat(s) are bound to triangles degenerate" in compact_problem(asset)
     with pytest.raises(UsageError, match="degenerate at rest"):
         asset_to_gltf(asset, anchors="compact")
     with pytest.raises(UsageError, match="anchors must be one of"):
         asset_to_gltf(asset, anchors="tiny")
+    assert compact_problem(SplatAsset([SplatPrimitive(cloud, Anchoring(mesh, LocalAnchors(
+        [0, 0], anchors.barycentrics, anchors.normal_offset, anchors.local_rotation,
+        anchors.local_scale)))])) is None
+    # gsverse-convert keeps these anchors: its default layout falls back to explicit and says so
+    write_gltf(asset, tmp_path / "in.glb")
+    base = [str(tmp_path / "in.glb"), str(tmp_path / "out.glb"), "-w"]
+    assert convert_main(base) == 0
+    out = capsys.readouterr().out
+    assert "explicit anchors (extension 1.1 layout)" in out and "degenerate at rest" in out
+    assert "faceIndex" in _anchor_json(tmp_path / "out.glb")
+    assert convert_main(base + ["--anchors", "compact"]) == 2          # asked for: refused
+    err = capsys.readouterr().err
+    assert "degenerate at rest" in err and err.count("\n") == 1
 
 
 @pytest.mark.parametrize("bits", [16, 8])
@@ -348,15 +362,41 @@ def _convert(tmp_path: Path, name: str, *args: str) -> dict:
 
 def test_cli_anchors_and_quantize_shrink_the_file_and_keep_the_rest_pose(tmp_path):
     sizes = {}
-    for name, args in (("explicit.glb", ()), ("compact.glb", ("--anchors", "compact")),
-                       ("q16.glb", ("--quantize", "16")),
+    layouts = {}
+    for name, args in (("explicit.glb", ("--anchors", "explicit")), ("default.glb", ()),
+                       ("compact.glb", ("--anchors", "compact")),
+                       ("q16.glb", ("--anchors", "explicit", "--quantize", "16")),
                        ("compact8.glb", ("--anchors", "compact", "--quantize", "8"))):
         summary = _convert(tmp_path, name, *args)
-        sizes[name] = summary["output_bytes"]
+        sizes[name], layouts[name] = summary["output_bytes"], summary["anchors"]
         prim = read_gltf(tmp_path / name).primitives[0]
         assert max(_rest_errors(prim)) <= 1.0, name
     assert sizes["compact8.glb"] < sizes["compact.glb"] < sizes["q16.glb"] < sizes["explicit.glb"]
     assert "faceCounts" in _anchor_json(tmp_path / "compact8.glb")
+    # the default is compact (extension 1.2), byte for byte what --anchors compact writes
+    assert (tmp_path / "default.glb").read_bytes() == (tmp_path / "compact.glb").read_bytes()
+    assert layouts == {"explicit.glb": "explicit", "default.glb": "compact",
+                       "compact.glb": "compact", "q16.glb": "explicit", "compact8.glb": "compact"}
+    assert "faceIndex" in _anchor_json(tmp_path / "explicit.glb")
+
+
+def test_cli_default_layout_is_explicit_with_keep_order_and_says_so(tmp_path, capsys):
+    base = [str(CAPSULE / "splats.ply"), str(tmp_path / "o.glb"), "--mesh",
+            str(CAPSULE / "mesh.obj"), "-w"]
+    assert convert_main(base) == 0
+    out = capsys.readouterr().out
+    assert "; compact anchors (extension 1.2)" in out and "not the default" not in out
+    assert convert_main(base + ["--keep-order"]) == 0
+    out = capsys.readouterr().out
+    assert "; explicit anchors (extension 1.1 layout)" in out
+    assert "not the default compact ones: --keep-order" in out
+    assert "faceIndex" in _anchor_json(tmp_path / "o.glb")
+    assert convert_main(base + ["--keep-order", "--anchors", "explicit"]) == 0
+    assert "not the default" not in capsys.readouterr().out       # asked for: no note
+    # outputs without glTF anchors say no layout
+    assert convert_main([str(CAPSULE / "splats.ply"), str(tmp_path / "p.glb"), "--plain",
+                         "-w", "--json", "-q"]) == 0
+    assert json.loads(capsys.readouterr().out)["anchors"] is None
 
 
 def test_cli_refuses_compact_with_keep_order_and_other_bit_depths(tmp_path, capsys):
@@ -386,7 +426,8 @@ def test_real_splats_compact_and_quantized_hold_the_rest_pose(shared_data, tmp_p
 
     src = shared_data / "3dgs" / "donut_mipsplatting_sh0_fused.ply"
     mesh = shared_data / "meshes" / "trimesh_bunny_stanford_res2.ply"
-    for args in (("--anchors", "compact", "--quantize", "8"), ("--quantize", "8")):
+    for args in (("--anchors", "compact", "--quantize", "8"),
+                 ("--anchors", "explicit", "--quantize", "8")):
         out = tmp_path / "real.glb"
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):

@@ -29,7 +29,7 @@ def anchored_glb(tmp_path):
     write_splat_ply(splats, ply)
     obj.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in mesh.vertices) +
                    "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in mesh.faces))
-    api.convert(ply, path, mesh=str(obj), deformation="rigid")
+    api.convert(ply, path, mesh=str(obj), deformation="rigid", anchors="explicit")
     return path, mesh
 
 

@@ -241,11 +241,13 @@ def build_parser() -> argparse.ArgumentParser:
                      help="format conversion only: write plain KHR splats without anchoring")
     add_edit_flags(p)
     gl = p.add_argument_group("glTF output")
-    gl.add_argument("--anchors", choices=("explicit", "compact"), default="explicit",
-                    help="explicit: per-splat face, barycentrics, offset, rotation and scale "
-                         "(extension 1.1 layout, default); compact: per-face splat counts, and "
-                         "local anchors derived from the rest pose (extension 1.2: 1.1 readers "
-                         "see the rest pose only)")
+    gl.add_argument("--anchors", choices=("explicit", "compact"), default=None,
+                    help="compact (default): per-face splat counts, and local anchors derived "
+                         "from the rest pose (extension 1.2: 1.1 readers see the rest pose "
+                         "only); explicit: per-splat face, barycentrics, offset, rotation and "
+                         "scale (extension 1.1 layout). Without the flag, explicit where "
+                         "compact cannot be written (--keep-order, splats on faces degenerate "
+                         "at rest); the summary says which")
     gl.add_argument("--quantize", type=int, choices=(16, 8), metavar="BITS",
                     help="store barycentrics, local rotations and (where no stored anchor "
                          "depends on it) the rest rotation as normalized 16- or 8-bit integers")

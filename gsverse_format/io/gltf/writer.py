@@ -257,13 +257,28 @@ def _sorted_for_counts(prim: SplatPrimitive, i: int) -> tuple[SplatCloud, Anchor
         order = np.argsort(face, kind="stable")
         c = c.subset(order)
         anchors = anchors.subset(order)
-    if isinstance(anchors, LocalAnchors):
-        bad = degenerate_splats(anchoring.mesh, anchors.face_index)
-        if bad.size:
-            raise UsageError(f"primitive {i}: {bad.size} splat(s) are bound to triangles "
-                             f"degenerate at rest (face {int(anchors.face_index[bad[0]])}); "
-                             f"compact anchors cannot derive them: write explicit anchors")
+    problem = _compact_problem(Anchoring(anchoring.mesh, anchors))
+    if problem is not None:
+        raise UsageError(f"primitive {i}: {problem}: write explicit anchors")
     return c, Anchoring(anchoring.mesh, anchors)
+
+
+def _compact_problem(anchoring: Anchoring) -> str | None:
+    """Why ``anchoring`` cannot be stored compactly, or None: derived ``local`` anchors need
+    every splat on a face regular at rest; ``games`` ones only gain ``faceCounts``."""
+    a = anchoring.anchors
+    bad = degenerate_splats(anchoring.mesh, a.face_index) if isinstance(a, LocalAnchors) else []
+    return None if not len(bad) else (
+        f"{len(bad)} splat(s) are bound to triangles degenerate at rest (face "
+        f"{int(a.face_index[bad[0]])}); compact anchors cannot derive them")
+
+
+def compact_problem(asset: SplatAsset) -> str | None:
+    """Why ``asset`` cannot be written with ``anchors="compact"`` (one line, the first
+    primitive that cannot), or None; the rule :func:`asset_to_gltf` refuses by."""
+    problems = (f"primitive {i}: {p}" for i, prim in enumerate(asset.primitives)
+                if prim.anchoring is not None and (p := _compact_problem(prim.anchoring)))
+    return next(problems, None)
 
 
 def quantize_notes(asset: SplatAsset, quantize: dict | None,
