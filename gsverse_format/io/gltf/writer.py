@@ -267,7 +267,9 @@ def _compact_problem(anchoring: Anchoring) -> str | None:
     """Why ``anchoring`` cannot be stored compactly, or None: derived ``local`` anchors need
     every splat on a face regular at rest; ``games`` ones only gain ``faceCounts``."""
     a = anchoring.anchors
-    bad = degenerate_splats(anchoring.mesh, a.face_index) if isinstance(a, LocalAnchors) else []
+    if not isinstance(a, LocalAnchors):
+        return None
+    bad = degenerate_splats(anchoring.mesh, a.face_index)
     return None if not len(bad) else (
         f"{len(bad)} splat(s) are bound to triangles degenerate at rest (face "
         f"{int(a.face_index[bad[0]])}); compact anchors cannot derive them")
