@@ -50,6 +50,8 @@ import numpy as np
 
 from ...errors import FormatError
 from ...transform import rotate_splats
+from ..spz_stream import (COLOR_SCALE, HEADER_BYTES, MAGIC, SpzHeader, attribute_sizes, decode,
+                          parse_header, split_stream, unpack_smallest_three)
 from .common import Decoded, splat_cloud
 from .container import (INFLATION_SLACK, MAX_INFLATION_RATIO, Fields, gunzip, inflation_limit,
                         read_bytes)
@@ -57,60 +59,31 @@ from .container import (INFLATION_SLACK, MAX_INFLATION_RATIO, Fields, gunzip, in
 __all__ = ["MAGIC", "COLOR_SCALE", "COORDINATE_SYSTEMS", "read_spz", "storage_to_rub",
            "unpack_smallest_three_spz"]
 
-MAGIC = 0x5053474E
-#: spz's scale of the DC colour: ``byte = 255 · (0.5 + COLOR_SCALE · f_dc)``.
-COLOR_SCALE = 0.15
-_SQRT1_2 = 0.7071067811865476
-HEADER_BYTES = 16
+#: The version-3 rotation decoder under its earlier name.
+unpack_smallest_three_spz = unpack_smallest_three
 #: Extension records (other than the coordinate system) skipped at most; real files hold a
 #: handful, and each costs a Python loop turn.
 MAX_EXTENSION_RECORDS = 1024
 V4_HEADER_BYTES = 32
 
 
-def unpack_smallest_three_spz(words: np.ndarray) -> np.ndarray:
-    """(N,) uint32 spz v3 rotations -> (N, 4) float64 quaternions (x, y, z, w)."""
-    comp = words.astype(np.uint32)
-    largest = (comp >> 30).astype(np.intp)
-    q = np.zeros((len(comp), 4))
-    sum_sq = np.zeros(len(comp))
-    for i in (3, 2, 1, 0):
-        skip = largest == i
-        mag = (comp & 511).astype(np.float64)
-        neg = ((comp >> 9) & 1).astype(bool)
-        value = _SQRT1_2 * mag / 511.0
-        value = np.where(neg, -value, value)
-        q[:, i] = np.where(skip, 0.0, value)
-        sum_sq += np.where(skip, 0.0, value * value)
-        comp = np.where(skip, comp, comp >> 10)
-    q[np.arange(len(q)), largest] = np.sqrt(np.maximum(0.0, 1.0 - sum_sq))
-    return q
-
-
-def _legacy_streams(raw: bytes, path: str) -> tuple[bytes, dict[str, int], int]:
-    """A v2/v3 file: its gzip content, header fields and the offset of the attributes."""
+def _legacy_streams(raw: bytes, path: str) -> tuple[SpzHeader, dict[str, np.ndarray], bytes]:
+    """A v2/v3 file: its header, each attribute's bytes and the extension records."""
     data = gunzip(raw, path)
-    head = Fields(data, path, "spz header")
-    if len(data) < HEADER_BYTES or head.u32(0) != MAGIC:
+    if len(data) < 4 or data[:4] != b"NGSP":
         raise FormatError("not an spz file (no NGSP magic in the gzip stream)", path)
-    fields = {"version": head.u32(4), "n": head.u32(8), "degree": head.u8(12),
-              "frac": head.u8(13), "flags": head.u8(14)}
-    if fields["version"] not in (2, 3):
-        raise FormatError(f"spz version {fields['version']} in a gzip stream is not supported "
-                          "(versions 2 and 3 are)", path)
-    return data, fields, HEADER_BYTES
+    header = parse_header(data, path)
+    parts, extensions = split_stream(data, header, path)
+    return header, parts, extensions
 
 
 def _sizes(fields: dict[str, int], path: str) -> dict[str, int]:
-    n, degree, version = fields["n"], fields["degree"], fields["version"]
-    if degree > 3:
-        raise FormatError(f"SH degree {degree} is not supported (0..3)", path)
+    if fields["degree"] > 3:
+        raise FormatError(f"SH degree {fields['degree']} is not supported (0..3)", path)
     if fields["frac"] > 24:
         raise FormatError(f"{fields['frac']} fractional bits is more than the 24 a position "
                           "has", path)
-    dim = (degree + 1) ** 2 - 1
-    return {"positions": 9 * n, "alphas": n, "colours": 3 * n, "scales": 3 * n,
-            "rotations": (4 if version >= 3 else 3) * n, "sh": 3 * dim * n}
+    return attribute_sizes(fields["version"], fields["n"], fields["degree"])
 
 
 def _v4_streams(raw: bytes, path: str) -> tuple[dict[str, int], dict[str, bytes]]:
@@ -211,52 +184,29 @@ def read_spz(path: str | os.PathLike[str]) -> Decoded:
     raw = read_bytes(path)
     if raw[:4] == b"NGSP":
         fields, streams = _v4_streams(raw, path)
-        sizes = _sizes(fields, path)
+        extensions = streams.pop("extensions")
+        header = SpzHeader(4, fields["n"], fields["degree"], fields["frac"], fields["flags"])
+        parts = {k: np.frombuffer(v, np.uint8) for k, v in streams.items()}
         stored = {"header and table": 32}
     elif raw[:2] == b"\x1f\x8b":
-        data, fields, offset = _legacy_streams(raw, path)
-        sizes = _sizes(fields, path)
-        need = offset + sum(sizes.values())
-        if len(data) < need:
-            raise FormatError(f"truncated: {fields['n']} splats need {need} bytes, the stream "
-                              f"holds {len(data)}", path)
-        streams = {}
-        for name, size in sizes.items():
-            streams[name] = data[offset:offset + size]
-            offset += size
-        streams["extensions"] = data[offset:]
+        header, parts, extensions = _legacy_streams(raw, path)
         stored = {"header": HEADER_BYTES}
     else:
         raise FormatError("not an spz file (neither a gzip stream nor an NGSP header)", path)
-    n, version, flags = fields["n"], fields["version"], fields["flags"]
-    dim = (fields["degree"] + 1) ** 2 - 1
-    extensions = streams.pop("extensions") if flags & 2 else b""
-    parts = {k: np.frombuffer(v, np.uint8) for k, v in streams.items()}
-    b = parts["positions"].reshape(n, 3, 3).astype(np.int64)
-    fixed = b[..., 0] | (b[..., 1] << 8) | (b[..., 2] << 16)
-    fixed = np.where(fixed & 0x800000, fixed - (1 << 24), fixed)
-    means = fixed / float(1 << fields["frac"])
-    scales = np.exp(parts["scales"].reshape(n, 3) / 16.0 - 10.0)
-    opacity = parts["alphas"] / 255.0
-    dc = (parts["colours"].reshape(n, 3) / 255.0 - 0.5) / COLOR_SCALE
-    if version >= 3:
-        xyzw = unpack_smallest_three_spz(parts["rotations"].view("<u4"))
-    else:
-        xyz = parts["rotations"].reshape(n, 3) / 127.5 - 1.0
-        w = np.sqrt(np.maximum(0.0, 1.0 - (xyz * xyz).sum(axis=1)))
-        xyzw = np.concatenate([xyz, w[:, None]], axis=1)
-    sh = np.zeros((n, dim + 1, 3))
-    sh[:, 0] = dc
-    sh[:, 1:] = (parts["sh"].reshape(n, dim, 3) - 128.0) / 128.0
+    sizes = attribute_sizes(header.version, header.count, header.degree)
+    if not header.flags & 2:
+        extensions = b""
+    arrays = decode(header, parts)
     notes = []
-    if flags & 1:
+    if header.flags & 1:
         notes.append("the file is marked antialiased; the splats are read with the default "
                      "kernel")
     storage, skipped = _extensions(extensions, path)
     if skipped:
         notes.append(f"{skipped} spz extension record(s) not read (only "
                      "SPZ_ADOBE_coordinate_system is)")
-    cloud = splat_cloud(means, xyzw[:, [3, 0, 1, 2]], scales, opacity, sh, path)
+    cloud = splat_cloud(arrays.means, arrays.rotations[:, [3, 0, 1, 2]], arrays.scales,
+                        arrays.opacities, arrays.sh, path)
     if storage not in (None, "RUB"):
         to_rub = storage_to_rub(storage)
         if np.linalg.det(to_rub) < 0:
@@ -265,6 +215,6 @@ def read_spz(path: str | os.PathLike[str]) -> Decoded:
                               "frames are read", path)
         cloud = rotate_splats(cloud, to_rub)
         notes.append(f"stored in {storage} (SPZ_ADOBE_coordinate_system), turned into RUB")
-    return Decoded(cloud, f"spz v{version}",
+    return Decoded(cloud, f"spz v{header.version}",
                    {"file": len(raw), **stored, **{k: v for k, v in sizes.items() if v}},
                    notes)
