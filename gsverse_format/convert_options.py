@@ -51,7 +51,9 @@ class ConvertOptions:
     compact, or explicit where compact cannot be written (``keep_order``, splats bound to
     faces degenerate at rest), which a note says; ``quantize`` (16 or 8) stores
     what glTF output can quantize as normalized integers of that many bits
-    (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`). An anchor mesh that does not fit
+    (:data:`gsverse_format.io.gltf.writer.QUANTIZE_BITS`); ``compress`` ``"spz"`` stores the
+    rest pose of glTF output as SPZ streams (``KHR_gaussian_splatting_compression_spz_2``,
+    spec §SPZ-compressed rest pose; anchored splats need compact ``local`` anchors). An anchor mesh that does not fit
     its splats (:func:`gsverse_format.scene.judge_fit`) is a warning, an error with ``strict``.
     The file options (``mesh``, ``meshes``, ``pt_path``, ``bake_poses``) take str or any
     path-like object (``pathlib.Path``). ``physics`` (the ``--physics`` values, a str for one)
@@ -91,6 +93,7 @@ class ConvertOptions:
     collider: str | None = None
     anchors: str | None = None
     quantize: int | None = None
+    compress: str | None = None
     strict: bool = False
     physics: list[str] | None = None
     mass: list[str] | None = None
@@ -133,6 +136,8 @@ class ConvertSummary:
     #: How glTF output stores the anchors: ``"compact"`` (1.2) or ``"explicit"`` (1.1); None
     #: for other outputs and for outputs without anchors.
     anchors: str | None = None
+    #: ``"spz"`` when glTF output stores the rest pose SPZ-compressed, else None.
+    compression: str | None = None
     sh_degree: int = 0
     mesh_faces: int = 0
     degenerate_faces: int = 0
@@ -169,6 +174,8 @@ class ConvertSummary:
             layout = {"compact": "; compact anchors (extension 1.2)",
                       "explicit": "; explicit anchors (extension 1.1 layout)"}.get(
                           self.anchors or "", "")
+            if self.compression:
+                layout += f"; rest pose {self.compression.upper()}-compressed"
             out.append(f"  {'binding    ' if self.plain_output else 'anchoring  '}profile "
                        f"{self.profile}{law}, {self.mesh_faces} faces "
                        f"({self.degenerate_faces} degenerate, never bound)"
@@ -283,6 +290,18 @@ def check_encoding_options(output_path: str, options: ConvertOptions, out_format
     if options.anchors == "compact" and options.keep_order:
         raise UsageError("--anchors compact stores the splats grouped by face: drop --keep-order "
                          "or --anchors compact")
+    if options.compress not in (None, "spz"):
+        raise UsageError(f"--compress must be spz, not {options.compress!r}")
+    if options.compress is not None:
+        if out_format != "gltf":
+            raise UsageError("--compress applies to glTF output (.glb, .gltf) only", output_path)
+        if options.anchors == "explicit" and not options.plain:
+            raise UsageError("--compress spz needs compact anchors: explicit anchors fix the rest "
+                             "pose, and SPZ quantization would move it off their remap; drop "
+                             "--anchors explicit")
+        if options.keep_order and not options.plain:
+            raise UsageError("--compress spz needs compact anchors, which group the splats by "
+                             "face: drop --keep-order")
 
 
 def object_names(input_path: str, options: ConvertOptions) -> list[str]:

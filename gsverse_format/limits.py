@@ -9,7 +9,8 @@ from __future__ import annotations
 
 __all__ = ["MAX_ASSET_BYTES", "MAX_GLTF_ARRAY_ITEMS", "MAX_DATA_URI_BYTES",
            "MAX_SCENE_INSTANCES", "MAX_SCENE_VERTICES", "MAX_SCENE_TRIANGLES",
-           "MAX_READ_AMPLIFICATION", "READ_AMPLIFICATION_SLACK", "MAX_MESH_FILE_BYTES",
+           "MAX_READ_AMPLIFICATION", "READ_AMPLIFICATION_SLACK", "MAX_SPZ_AMPLIFICATION",
+           "MAX_MESH_FILE_BYTES",
            "MAX_USD_TEXT_BYTES", "MAX_USD_TEXT_PRIMS",
            "MAX_USD_TEXT_NESTING", "MAX_PLY_RAGGED_ROWS", "USD_CHILD_MEMORY_BASE",
            "USD_CHILD_SECONDS_BASE", "USD_CHILD_SECONDS_PER_MIB", "usd_child_seconds",
@@ -41,6 +42,13 @@ MAX_SCENE_TRIANGLES = 2 ** 25
 #: bytes of the buffers they lie in, plus :data:`READ_AMPLIFICATION_SLACK`.
 MAX_READ_AMPLIFICATION = 4
 READ_AMPLIFICATION_SLACK = 2 ** 26
+
+#: SPZ-compressed splat primitives (spec §SPZ-compressed rest pose): the float32 attributes a
+#: stream decodes to may be at most this many times the stream's bytes plus
+#: :data:`READ_AMPLIFICATION_SLACK`, checked before inflating (real streams decode to 5–15
+#: times their size; a stream of identical splats to far more); inflation itself stops at
+#: the bytes the declared splat count needs.
+MAX_SPZ_AMPLIFICATION = 64
 
 #: Morph targets of an animated ``--mesh`` glTF: the accessor bytes the targets read are held
 #: to :data:`MAX_READ_AMPLIFICATION` as above, and the deltas kept (a float32 (V, 3) array per

@@ -432,12 +432,18 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
         summary.notes.append(f"baked {len(poses.times)} anchor-mesh poses into USD time samples")
     encoding: dict[str, Any] = {}
     if find_format(output_path, "write").name == "gltf":
-        from .io.gltf.writer import QUANTIZE_BITS, quantize_notes
+        from .io.gltf.writer import QUANTIZE_BITS, compress_notes, compress_problem, quantize_notes
 
         quantize = QUANTIZE_BITS[options.quantize] if options.quantize is not None else None
         layout = _anchor_layout(asset, options, summary)
-        encoding = {"quantize": quantize, "anchors": layout}
+        encoding = {"quantize": quantize, "anchors": layout, "compress": options.compress}
         summary.notes.extend(quantize_notes(asset, quantize, layout))
+        if options.compress is not None:
+            problem = compress_problem(asset, layout)
+            if problem is not None:
+                raise UsageError(f"--compress {options.compress}: {problem}", summary.input)
+            summary.notes.extend(compress_notes(asset))
+            summary.compression = options.compress
     progress.stage(f"writing {os.path.basename(output_path)}")
     write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
                 bake_poses=poses, **encoding)
@@ -456,6 +462,8 @@ def _anchor_layout(asset: SplatAsset, options: ConvertOptions, summary: ConvertS
     if options.anchors is None and asset.anchored:
         reason = ("--keep-order keeps the input's splat order, compact anchors group the "
                   "splats by face" if options.keep_order else compact_problem(asset))
+        if reason is not None and options.compress is not None:
+            raise UsageError(f"--compress {options.compress} needs compact anchors: {reason}")
         if reason is not None:
             layout = "explicit"
             summary.notes.append(f"wrote explicit anchors (extension 1.1 layout), not the "

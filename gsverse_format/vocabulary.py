@@ -25,12 +25,16 @@ __all__ = ["EXTENSION", "KHR", "PROFILES", "DEFORMATIONS", "BYTE", "UNSIGNED_BYT
            "AnchorField", "ANCHOR_FIELDS", "FIELDS_BY_KEY", "required_fields", "allowed_fields",
            "USD_PROFILE", "USD_DEFORMATION", "USD_MESH", "KHR_ATTRIBUTE_FORMATS", "COV6_ORDER",
            "COV6_INDEX", "SH_C0", "FACE_COUNTS", "DERIVED_KEYS", "ANCHOR_ENCODINGS",
-           "gltf_required_keys", "RECORDED_FRAMES", "frame_record", "recorded_frame"]
+           "gltf_required_keys", "RECORDED_FRAMES", "frame_record", "recorded_frame",
+           "SPZ_EXTENSION"]
 
 #: The anchor extension, nested in ``KHR_gaussian_splatting``.
 EXTENSION = "GSVERSE_gaussian_splatting_mesh_anchor"
 #: The base extension.
 KHR = "KHR_gaussian_splatting"
+#: The Khronos draft storing a splat primitive's attributes as one SPZ stream, nested in
+#: ``KHR_gaussian_splatting`` (spec §SPZ-compressed rest pose).
+SPZ_EXTENSION = "KHR_gaussian_splatting_compression_spz_2"
 #: ratified glTF extension hiding a node (the anchor node of an animated anchor mesh)
 NODE_VISIBILITY = "KHR_node_visibility"
 

@@ -828,7 +828,7 @@ def test_sparse_and_unsupported_required(tmp_path, good):
                                      "values": {"bufferView": 0}}
     _expect_error(_save_glb(tmp_path, doc, good[1], name="sparse.glb"), "sparse")
     doc = json.loads(json.dumps(good[0]))
-    doc["extensionsRequired"] = ["KHR_gaussian_splatting_compression_spz_2"]
+    doc["extensionsRequired"] = ["KHR_gaussian_splatting_compression_lgsc"]
     _expect_error(_save_glb(tmp_path, doc, good[1], name="spz.glb"), "not supported")
     doc = json.loads(json.dumps(good[0]))
     doc["asset"]["version"] = "1.0"

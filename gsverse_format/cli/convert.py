@@ -251,6 +251,11 @@ def build_parser() -> argparse.ArgumentParser:
     gl.add_argument("--quantize", type=int, choices=(16, 8), metavar="BITS",
                     help="store barycentrics, local rotations and (where no stored anchor "
                          "depends on it) the rest rotation as normalized 16- or 8-bit integers")
+    gl.add_argument("--compress", choices=("spz",), default=None,
+                    help="spz: store the rest pose as SPZ streams "
+                         "(KHR_gaussian_splatting_compression_spz_2, about 5-8x smaller; needs "
+                         "compact anchors; quantization bounds in spec/README.md "
+                         "§SPZ-compressed rest pose)")
     usd = p.add_argument_group("USD output")
     usd.add_argument("--bake-poses", metavar="FILE",
                      help="also store the splats remapped onto these anchor-mesh poses as USD "
@@ -284,7 +289,8 @@ def _options(args: argparse.Namespace) -> ConvertOptions:
                           pt_path=args.pt_path, k=args.k,
                           legacy_trellis_frame=args.legacy_trellis_frame, plain=args.plain,
                           bake_poses=args.bake_poses, anchors=args.anchors,
-                          quantize=args.quantize, strict=args.strict, physics=args.physics,
+                          quantize=args.quantize, compress=args.compress,
+                          strict=args.strict, physics=args.physics,
                           mass=args.mass, ground=args.ground,
                           **{name: getattr(args, name) for name in EDIT_OPTIONS})
 

@@ -142,6 +142,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "suffix, which --to must match")
     p.add_argument("--format", choices=tuple(FORMATS),
                    help="the older spelling of --to: ply, glb, or usd (= usda)")
+    p.add_argument("--compress", choices=("spz",), default=None,
+                   help="spz: GLB frames store their splats as SPZ streams "
+                        "(KHR_gaussian_splatting_compression_spz_2; spec/README.md "
+                        "§SPZ-compressed rest pose); glb and gltf output only")
     p.add_argument("--no-frame-change", action="store_true",
                    help="write the posed values as they are, in the asset's frame (default: "
                         "as the asset records; an asset converted with the frame change is "
@@ -172,6 +176,8 @@ class PoseSummary:
     format: str
     times: list[float]
     outputs: list[str] = field(default_factory=list)
+    #: ``"spz"`` when the GLB frames are SPZ-compressed
+    compression: str | None = None
     vat: str | None = None
     anchor_meshes: int = 0
     splats: int = 0
@@ -187,7 +193,9 @@ class PoseSummary:
                f"vertices moved up to {self.max_displacement:.4g}"]
         if self.outputs:
             out.append(f"  wrote       {len(self.outputs)} {self.format} file(s) in "
-                       f"{os.path.dirname(self.outputs[0]) or '.'}")
+                       f"{os.path.dirname(self.outputs[0]) or '.'}"
+                       + (f" ({self.compression.upper()}-compressed)" if self.compression
+                          else ""))
         if self.vat:
             out.append(f"  VAT         {self.vat}")
         out.append(f"  time        {self.seconds:.2f} s")
@@ -373,6 +381,9 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
     stem = os.path.splitext(os.path.basename(asset_path))[0]
     outputs, fmt = _outputs(args, stem, len(times))
     usd = fmt in USD_FORMATS
+    if args.compress is not None and fmt not in ("glb", "gltf"):
+        raise UsageError(f"--compress applies to glb and gltf frames, not {fmt or 'a VAT only'}")
+    encoding = {"compress": args.compress} if args.compress is not None else {}
     if (usd or args.vat) and np.any(np.diff(times) <= 0):
         raise UsageError(f"{'a VAT' if args.vat else 'USD time samples'} needs strictly "
                          f"increasing --times")
@@ -392,7 +403,8 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
         make_folder(folder)
 
     summary = PoseSummary(asset_path, source_label, fmt or "vat", [float(t) for t in times],
-                          anchor_meshes=len(driven), splats=asset.splat_count())
+                          anchor_meshes=len(driven), splats=asset.splat_count(),
+                          compression=args.compress)
     vat_mesh_key = next(iter(driven))
     progress.stage(f"posing {len(times)} time(s)")
     frames: list[dict[int, np.ndarray]] = []   # every pose first: a bad one writes nothing
@@ -415,7 +427,7 @@ def run(args: argparse.Namespace, progress: Progress) -> PoseSummary:
         progress.stage(f"writing {len(times)} {fmt} file(s)")
         for i, posed in enumerate(frames):
             write(_posed_asset(asset, posed), outputs[i], protect=(asset_path,),
-                  frame_change=frame_change)
+                  frame_change=frame_change, **encoding)
             summary.outputs.append(outputs[i])
             progress.update(i + 1, len(times))
     progress.close()

@@ -17,7 +17,7 @@ import numpy as np
 from ...codes import Code
 from ...limits import MAX_READ_AMPLIFICATION, READ_AMPLIFICATION_SLACK
 from ...vocabulary import (BYTE, COMPONENT_TYPE_NAMES, EXTENSION, FLOAT, KHR, SHORT,
-                           UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT, Format)
+                           SPZ_EXTENSION, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT, Format)
 from .container import Buffers, JsonView, as_index, as_int, gltf_error, is_int
 
 __all__ = ["COMPONENT_DTYPES", "TYPE_COMPONENTS", "MATRIX_ROWS", "QUANTIZED_POSITION_FORMATS",
@@ -271,6 +271,12 @@ def buffer_bytes(doc: dict) -> int:
                if isinstance(b, dict) and is_int(b.get("byteLength")) and b["byteLength"] > 0)
 
 
+def _placeholder(accessors: list, ref: Any) -> bool:
+    """True for a valid reference to an accessor without ``bufferView``."""
+    return (is_int(ref) and 0 <= ref < len(accessors) and isinstance(accessors[ref], dict)
+            and accessors[ref].get("bufferView") is None)
+
+
 def check_read_amplification(doc: dict) -> None:
     """Raise ``SIZE_LIMIT_EXCEEDED`` when reading every splat primitive would decode far more
     bytes than the buffers hold: primitives sharing accessors (legal glTF) would make a small
@@ -298,6 +304,10 @@ def check_read_amplification(doc: dict) -> None:
             attrs = prim.get("attributes")
             refs = list(attrs.values()) if isinstance(attrs, dict) else []
             nested = khr.get("extensions")
+            if isinstance(nested, dict) and SPZ_EXTENSION in nested:
+                # placeholders: what the stream decodes to is bounded by its own rule
+                # (limits.MAX_SPZ_AMPLIFICATION), checked before it inflates
+                refs = [r for r in refs if not _placeholder(accessors, r)]
             anchor = nested.get(EXTENSION) if isinstance(nested, dict) else None
             if isinstance(anchor, dict):
                 refs += [v for k, v in anchor.items() if k not in ("mesh", "primitive")]

@@ -27,7 +27,7 @@ import numpy as np
 from ...codes import Code
 from ...errors import FormatError
 from ...limits import MAX_ASSET_BYTES, MAX_DATA_URI_BYTES, MAX_GLTF_ARRAY_ITEMS
-from ...vocabulary import KHR
+from ...vocabulary import KHR, SPZ_EXTENSION
 
 __all__ = ["DEFAULT_MAX_BYTES", "GLB_MAGIC", "CHUNK_JSON", "CHUNK_BIN", "UNREADABLE_REQUIRED",
            "GltfFormatError", "gltf_error", "is_int", "as_int", "as_index", "parse_glb",
@@ -384,7 +384,8 @@ def header_problems(doc: dict, *, strict: bool = True) -> list[GltfFormatError]:
                                    "extensionsRequired must be an array", "/extensionsRequired"))
         required = []
     for i, name in enumerate(required):
-        if name in UNREADABLE_REQUIRED or (isinstance(name, str) and name.startswith(KHR + "_")):
+        if name in UNREADABLE_REQUIRED or (isinstance(name, str) and name.startswith(KHR + "_")
+                                           and name != SPZ_EXTENSION):
             problems.append(gltf_error(Code.UNSUPPORTED_REQUIRED_EXTENSION, f"the asset requires "
                                        f"extension {name}, which is not supported",
                                        f"/extensionsRequired/{i}"))

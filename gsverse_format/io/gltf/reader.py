@@ -26,28 +26,19 @@ from ...anchors_derive import degenerate_splats, derive_local
 from ...frames import local_frames
 from ...vocabulary import recorded_frame
 from ...vocabulary import (DERIVED_KEYS, DEFORMATIONS, EXTENSION, FACE_COUNTS, FIELDS_BY_KEY,
-                           FLOAT, KHR, PROFILES, SH_C0, UNSIGNED_BYTE, UNSIGNED_SHORT,
-                           gltf_required_keys)
+                           FLOAT, KHR, PROFILES, SH_C0, SPZ_EXTENSION, UNSIGNED_BYTE,
+                           UNSIGNED_SHORT, gltf_required_keys)
 from .accessors import Accessors
+from .attributes import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
 from .container import DEFAULT_MAX_BYTES, GltfFormatError, as_index, gltf_error, pointer_token
 from .physics import read_physics
+from .spz import decode_primitive as decode_compressed, is_compressed
 from .document import Document, open_document
 
 __all__ = ["ROTATION", "SCALE", "OPACITY", "sh_attribute", "POINTS", "TRIANGLES",
            "SplatReader", "read_document", "read_gltf", "as_format_error"]
 
-#: ``KHR_gaussian_splatting`` attribute semantics.
-ROTATION = f"{KHR}:ROTATION"
-SCALE = f"{KHR}:SCALE"
-OPACITY = f"{KHR}:OPACITY"
 _SH_RE = re.compile(rf"^{KHR}:SH_DEGREE_(\d+)_COEF_(\d+)$")
-#: glTF primitive modes.
-POINTS, TRIANGLES = 0, 4
-
-
-def sh_attribute(degree: int, coefficient: int) -> str:
-    """The attribute of SH coefficient ``coefficient`` (0 .. 2·degree) of ``degree``."""
-    return f"{KHR}:SH_DEGREE_{degree}_COEF_{coefficient}"
 
 
 def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
@@ -101,7 +92,8 @@ def _khr_properties(khr: dict, where: str, pointer: str, required: list,
                              f"string, got {value!r}", f"{pointer}/{key}")
         values[key] = value
     nested = khr.get("extensions") or {}
-    others = {name: copy.deepcopy(obj) for name, obj in nested.items() if name != EXTENSION}
+    others = {name: copy.deepcopy(obj) for name, obj in nested.items()
+              if name not in (EXTENSION, SPZ_EXTENSION)}
     for name in others:
         if name in required:
             raise gltf_error(Code.UNSUPPORTED_REQUIRED_EXTENSION, f"{where}: the nested "
@@ -304,28 +296,11 @@ class SplatReader:
         anchors = LocalAnchors(face, bary, offset[:, 0], rotation, scale, deformation)
         return Anchoring(mesh, anchors)
 
-    def splat_primitive(self, m: int, p: int, name: str | None) -> SplatPrimitive:
-        """The splat primitive ``p`` of mesh ``m`` (a ``KHR_gaussian_splatting`` POINTS one)."""
+    def _stored_cloud(self, attrs: dict[str, int], color_space: str, where: str,
+                      pointer: str) -> SplatCloud:
+        """The rest pose of an uncompressed splat primitive, from its accessors."""
         r = self.r
-        where = f"meshes[{m}].primitives[{p}]"
-        pointer = f"/meshes/{m}/primitives/{p}"
-        prim = self.primitive(m, p)
-        khr = prim["extensions"][KHR]
-        kpointer = f"{pointer}/extensions/{KHR}"
-        if not isinstance(khr, dict):
-            raise gltf_error(Code.KHR_PROPERTY_INVALID, f"{where}: {KHR} extension must be an "
-                             f"object", kpointer)
-        color_space = khr.get("colorSpace")
-        if not isinstance(color_space, str):
-            raise gltf_error(Code.KHR_PROPERTY_MISSING if color_space is None
-                             else Code.KHR_PROPERTY_INVALID, f"{where}: {KHR}.colorSpace is "
-                             f"missing or not a string", kpointer)
-        attrs: dict[str, int] = prim.get("attributes", {})
         apointer = f"{pointer}/attributes"
-        missing = [a for a in ("POSITION", ROTATION, SCALE, OPACITY) if a not in attrs]
-        if missing:
-            raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute(s) "
-                             f"missing: {', '.join(missing)}", apointer)
         bad_format = Code.KHR_ATTRIBUTE_FORMAT
         means = r.floats(attrs["POSITION"], f"{where} POSITION", ("VEC3",), code=bad_format)
         count = len(means)
@@ -361,7 +336,68 @@ class SplatReader:
         else:
             raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute "
                              f"missing: {sh_attribute(0, 0)}", apointer)
-        cloud = SplatCloud(means, rotations, scales, opacities, sh, color_space)
+        return SplatCloud(means, rotations, scales, opacities, sh, color_space)
+
+    def _compressed_cloud(self, khr: dict, attrs: dict[str, int], color_space: str, where: str,
+                          pointer: str) -> SplatCloud:
+        """The rest pose of a primitive stored through ``KHR_gaussian_splatting_compression_
+        spz_2``: the placeholder accessors' counts and types checked, then the stream decoded
+        (spec §SPZ-compressed rest pose)."""
+        apointer = f"{pointer}/attributes"
+        degree = _sh_degree(attrs, where, apointer)
+        expected = {"POSITION": ("VEC3",), ROTATION: ("VEC4",), SCALE: ("VEC3",),
+                    OPACITY: ("SCALAR",), "COLOR_0": ("VEC3", "VEC4")}
+        expected.update({sh_attribute(level, n): ("VEC3",) for level in range(degree + 1)
+                         for n in range(2 * level + 1)})
+        counts: dict[str, int] = {}
+        for name, gtypes in expected.items():
+            if name not in attrs:
+                continue
+            i = as_index(attrs[name], len(self.r.accessors), f"{where} {name}: accessor",
+                         f"{apointer}/{pointer_token(name)}")
+            acc = self.r.accessors.item(i)
+            if acc.get("type") not in gtypes:
+                raise gltf_error(Code.KHR_ATTRIBUTE_FORMAT, f"{where} {name} (accessor {i}) has "
+                                 f"type {acc.get('type')!r}, not {' or '.join(gtypes)}",
+                                 f"/accessors/{i}/type")
+            counts[name] = int(acc.get("count") or 0)
+        count = counts["POSITION"]
+        wrong = next((n for n, c in counts.items() if c != count), None)
+        if wrong is not None:
+            raise gltf_error(Code.SPZ_COUNT_MISMATCH, f"{where}: {wrong} has {counts[wrong]} "
+                             f"elements, POSITION has {count} (the placeholders of a compressed "
+                             f"primitive must all have the stream's count)",
+                             f"{apointer}/{pointer_token(wrong)}")
+        if degree < 0:
+            raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute "
+                             f"missing: {sh_attribute(0, 0)}", apointer)
+        return decode_compressed(self.r, khr, attrs, count, degree, color_space, where, pointer)
+
+    def splat_primitive(self, m: int, p: int, name: str | None) -> SplatPrimitive:
+        """The splat primitive ``p`` of mesh ``m`` (a ``KHR_gaussian_splatting`` POINTS one)."""
+        where = f"meshes[{m}].primitives[{p}]"
+        pointer = f"/meshes/{m}/primitives/{p}"
+        prim = self.primitive(m, p)
+        khr = prim["extensions"][KHR]
+        kpointer = f"{pointer}/extensions/{KHR}"
+        if not isinstance(khr, dict):
+            raise gltf_error(Code.KHR_PROPERTY_INVALID, f"{where}: {KHR} extension must be an "
+                             f"object", kpointer)
+        color_space = khr.get("colorSpace")
+        if not isinstance(color_space, str):
+            raise gltf_error(Code.KHR_PROPERTY_MISSING if color_space is None
+                             else Code.KHR_PROPERTY_INVALID, f"{where}: {KHR}.colorSpace is "
+                             f"missing or not a string", kpointer)
+        attrs: dict[str, int] = prim.get("attributes", {})
+        apointer = f"{pointer}/attributes"
+        missing = [a for a in ("POSITION", ROTATION, SCALE, OPACITY) if a not in attrs]
+        if missing:
+            raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute(s) "
+                             f"missing: {', '.join(missing)}", apointer)
+        if is_compressed(khr):
+            cloud = self._compressed_cloud(khr, attrs, color_space, where, pointer)
+        else:
+            cloud = self._stored_cloud(attrs, color_space, where, pointer)
         anchoring = None
         nested = khr.get("extensions")
         if nested is not None and not isinstance(nested, dict):
