@@ -218,13 +218,16 @@ def _spz_bound_check(path: Path, cloud) -> float:
     return max(worst, float(rel.max() / bound["covariance"]))
 
 
-def _mesh_share(path: Path) -> float:
-    """The fraction of the file the anchor mesh (positions, indices) and ``faceCounts`` take."""
+def _mesh_share(path: Path) -> tuple[float, float]:
+    """The fraction of the file the anchor mesh (positions, indices) and ``faceCounts`` take,
+    and the fraction 16-bit positions (``KHR_mesh_quantization`` SHORT VEC3, padded to 8 bytes
+    a vertex) would save."""
     from gsverse_format.conformance.glb import unpack_glb
     from gsverse_format.vocabulary import EXTENSION, KHR
 
     doc, _ = unpack_glb(path.read_bytes())
     views = set()
+    vertices = 0
     for mesh in doc["meshes"]:
         for prim in mesh["primitives"]:
             ext = prim.get("extensions", {}).get(KHR, {}).get("extensions", {}).get(EXTENSION)
@@ -232,8 +235,10 @@ def _mesh_share(path: Path) -> float:
                 views.add(doc["accessors"][ext["faceCounts"]]["bufferView"])
             if prim.get("mode", 4) == 4:
                 views.add(doc["accessors"][prim["attributes"]["POSITION"]]["bufferView"])
+                vertices += doc["accessors"][prim["attributes"]["POSITION"]]["count"]
                 views.add(doc["accessors"][prim["indices"]]["bufferView"])
-    return sum(doc["bufferViews"][v]["byteLength"] for v in views) / path.stat().st_size
+    size = path.stat().st_size
+    return sum(doc["bufferViews"][v]["byteLength"] for v in views) / size, 4 * vertices / size
 
 
 def _splat_transform(ply: Path, out: Path) -> int | str:
@@ -284,7 +289,7 @@ def delivery(sizes, log=lambda msg: None) -> list[dict]:
                         f"({time.perf_counter() - t0:.1f} s)")
                 row["spz_bound"] = _spz_bound_check(folder / "compact_spz.glb", c)
                 row["rest"] = _rest_check(folder / "compact_spz.glb")
-                row["mesh_share"] = _mesh_share(folder / "compact_spz.glb")
+                row["mesh_share"], row["q16_saving"] = _mesh_share(folder / "compact_spz.glb")
                 ply = folder / "splats.ply"
                 write_splat_ply(c, ply)
                 for key, suffix in (("st_spz", ".spz"), ("st_sog", ".sog")):
@@ -306,11 +311,12 @@ def delivery_markdown(rows: list[dict]) -> list[str]:
          "(default), anchored compact with the rest pose SPZ-compressed (`--compress spz`), "
          "plain KHR SPZ-compressed, and splat-transform's .spz (v4) and .sog; goal: compact + "
          "SPZ ≤ 1.3× the .spz at SH0, ≤ 1.15× at SH3. 'mesh' is the share of the anchor mesh "
-         "and faceCounts in the compact + SPZ file; 'bound' the decoded rest pose against the "
+         "and faceCounts in the compact + SPZ file ('q16' what 16-bit anchor-mesh positions "
+         "would save of it); 'bound' the decoded rest pose against the "
          "input in units of the stated SPZ bounds, 'rest' the derived anchors against the "
          "decoded rest pose in units of the rest-pose tolerances (≤ 1 holds).", "",
          "| splats | SH | plain KHR | explicit | compact | compact + SPZ | plain + SPZ | .spz | "
-         ".sog | compact+SPZ / .spz | goal | met | mesh | bound | rest (μ, Σ) |",
+         ".sog | compact+SPZ / .spz | goal | met | mesh (q16) | bound | rest (μ, Σ) |",
          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         spz = r["st_spz"]
@@ -320,7 +326,8 @@ def delivery_markdown(rows: list[dict]) -> list[str]:
                  f"{r['compact']:,} | {r['compact_spz']:,} | {r['plain_spz']:,} | {cell(spz)} | "
                  f"{cell(r['st_sog'])} | {'' if ratio is None else f'{ratio:.3f}×'} | "
                  f"≤ {goal}× | {'' if ratio is None else ('yes' if ratio <= goal else 'no')} | "
-                 f"{100 * r['mesh_share']:.1f}% | {r['spz_bound']:.2f} | "
+                 f"{100 * r['mesh_share']:.1f}% ({100 * r['q16_saving']:.1f}%) | "
+                 f"{r['spz_bound']:.2f} | "
                  f"{r['rest'][0]:.2g}, {r['rest'][1]:.2g} |")
     return L
 
