@@ -345,3 +345,15 @@ def test_pose_compress_spz(tmp_path, capsys):
     code = pose_main([str(asset), str(tmp_path / "ply"), "--to", "ply", "--deform",
                       "stretch=1.4", "--compress", "spz"])
     assert code != 0 and "glb and gltf" in capsys.readouterr().err
+
+
+def test_info_reports_the_stream(compressed):
+    """``gsverse-info`` counts the stream's bytes, not the placeholders' declared ones."""
+    from gsverse_format.io.info import describe
+
+    folder, _ = compressed
+    info = describe(folder / "spz.glb")
+    assert "splats SPZ stream" in info.parts
+    assert not any(k.startswith("splats POSITION") for k in info.parts)
+    assert sum(info.parts.values()) == (folder / "spz.glb").stat().st_size
+    assert info.primitives[0]["compression"] == "spz"
