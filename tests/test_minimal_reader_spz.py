@@ -105,10 +105,3 @@ def test_minimal_reader_inflates_no_further_than_the_count_needs(tmp_path):
     broken = _mutated(path, tmp_path / "bomb.glb", lambda d, p, e, s: bomb)
     with pytest.raises(minimal_reader.Refused, match="inflates past the 3916 bytes"):
         minimal_reader.read_anchored_glb(broken)
-
-
-def test_minimal_reader_refuses_stored_anchors_on_a_compressed_primitive(tmp_path):
-    from validation_assets import TRIGGERS
-    path = TRIGGERS["SPZ_EXPLICIT_ANCHORS"](tmp_path).path
-    with pytest.raises(minimal_reader.Refused, match="stored local anchors"):
-        minimal_reader.read_anchored_glb(path)

@@ -288,9 +288,6 @@ def read_anchored_glb(path) -> RawAsset:
     if ("faceIndex" in ext) == ("faceCounts" in ext):
         raise Refused("exactly one of faceIndex and faceCounts must be present")
     derived = profile == "local" and "barycentrics" not in ext
-    if compressed and not derived:
-        raise Refused(f"stored {profile} anchors on an SPZ-compressed primitive (only derived "
-                      f"local anchors are allowed there)")
     if derived and any(k in ext for k in _DERIVED):
         raise Refused("without barycentrics, normalOffset, localRotation and localScale must "
                       "be absent")
