@@ -508,7 +508,13 @@ Render cases: your engine's picture of every frame, same size as the reference, 
 Any case: `error`, a text file, when the harness itself failed on the case (it fails).
 
 Optional: `RESULTS/harness.json` (an object: name, version, precision, engine...) is echoed in
-the report.
+the report. `"unsupported": ["encoding:spz"]` in it declares that the plugin does not decode
+SPZ-compressed rest poses: the cases tagged so are reported UNSUPPORTED, not checked (the only
+optional feature).
+
+encoding:spz cases also ship expected/uncompressed/pose_NNN.{means,cov,bound}.f64: the remap of
+the uncompressed rest pose and the per-splat bound (mean, covariance) within which the check
+compares your outputs with it (case.json "compression").
 """
 
 
