@@ -1,7 +1,8 @@
 #!/usr/bin/env node
 // The conformance harness of the CPU path, in Node:
 //   node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale] [--fault NAME]
-// imports every case of SUITE/suite.json with readAnchoredGlb, remaps every pose with
+// imports every case of SUITE/suite.json with readAnchoredGlb (SPZ-compressed rest poses
+// expanded first by expandCompressed), remaps every pose with
 // remapCpu and writes the dump layout of spec/conformance.md into RESULTS; then
 // `gsverse-conformance check SUITE RESULTS` judges it. The poses of a rig case come from the
 // asset's own animation, sampled by src/animation.js (conformance/rig-pose.js). --rotation-scale
@@ -15,6 +16,7 @@ import { fileURLToPath } from 'node:url';
 
 import { readAnchoredGlb, AnchorError } from '../src/anchor.js';
 import { readAnchorAnimation } from '../src/animation.js';
+import { expandCompressed } from '../src/spz.js';
 import { computeRest } from '../src/rest.js';
 import { remapCpu, remapCpuRotationScale } from '../src/remap-cpu.js';
 import { matchesGlob, readF32, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
@@ -28,15 +30,15 @@ import { rigPose } from './rig-pose.js';
  * @param {string} folder  the case folder
  * @param {any} manifest
  * @param {{rotationScale?: boolean, fault?: string|null}} [options]
- * @returns {CaseResults & {code?: string}}
+ * @returns {Promise<CaseResults & {code?: string}>}
  */
-export function runCase(folder, manifest, options = {}) {
+export async function runCase(folder, manifest, options = {}) {
     let glb;
     /** @type {import('../src/animation.js').AnchorAnimation|null} */
     let animation = null;
     const rig = manifest.kind === 'rig';
     try {
-        const bytes = readFileSync(join(folder, manifest.files.asset));
+        const bytes = await expandCompressed(readFileSync(join(folder, manifest.files.asset)), { name: manifest.files.asset });
         glb = readAnchoredGlb(bytes, { name: manifest.files.asset });
         if (rig && glb.anchored.length === 1) {
             animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: options.fault ?? null });
@@ -80,9 +82,9 @@ export function runCase(folder, manifest, options = {}) {
  * @param {string} suiteDir
  * @param {string} resultsDir
  * @param {{rotationScale?: boolean, fault?: string|null, cases?: string, log?: (line: string) => void}} [options]
- * @returns {{id: string, kind: string, outcome: string, code?: string, expected?: string}[]}
+ * @returns {Promise<{id: string, kind: string, outcome: string, code?: string, expected?: string}[]>}
  */
-export function runSuite(suiteDir, resultsDir, options = {}) {
+export async function runSuite(suiteDir, resultsDir, options = {}) {
     const pkg = JSON.parse(readFileSync(new URL('../package.json', import.meta.url), 'utf8'));
     writeHarness(resultsDir, {
         name: '@gsverse/web CPU path (remap-cpu.js)',
@@ -100,7 +102,7 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
     for (const { folder, manifest } of readSuite(suiteDir)) {
         if (!matchesGlob(manifest.id, options.cases)) continue;
         const t0 = performance.now();
-        const results = runCase(folder, manifest, options);
+        const results = await runCase(folder, manifest, options);
         writeCaseResults(resultsDir, manifest.id, results);
         const outcome = results.refused !== undefined ? 'refused' : results.error !== undefined ? 'error' : 'remapped';
         const entry = { id: manifest.id, kind: manifest.kind, outcome, code: results.code, expected: manifest.validator_code };
@@ -111,7 +113,7 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
     return summary;
 }
 
-function main() {
+async function main() {
     const args = process.argv.slice(2);
     const flags = new Set(args.filter((a) => a.startsWith('--') && a !== '--cases' && a !== '--fault'));
     const casesAt = args.indexOf('--cases');
@@ -125,7 +127,7 @@ function main() {
     }
     const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
     const json = flags.has('--json');
-    const summary = runSuite(suiteDir, resultsDir, {
+    const summary = await runSuite(suiteDir, resultsDir, {
         rotationScale: flags.has('--rotation-scale'),
         fault: fault || null,
         cases,

@@ -48,6 +48,7 @@ import {
 import { AnchorError, readAnchoredGlb } from '../anchor.js';
 import { readAnchorAnimation } from '../animation.js';
 import { parseGltf } from '../glb.js';
+import { expandCompressed } from '../spz.js';
 import { computeRest } from '../rest.js';
 import { remapMeansInto } from '../remap-cpu.js';
 import { centersChanged, checkComponent, checkEngine, checkResource, meshSplatAssets } from './engine.js';
@@ -541,6 +542,7 @@ export async function loadAnchoredAsset(app, source, options = {}) {
         bytes = source instanceof Uint8Array ? source : new Uint8Array(source);
     }
     name = name || 'asset.glb';
+    bytes = await expandCompressed(bytes, { name });   // SPZ-compressed rest poses decoded (refusals throw here)
     const { anchored: prims, json } = readAnchoredGlb(bytes, { name });   // refusals throw here
     const doc = parseGltf(bytes);
     const animations = prims.map((prim) => readAnchorAnimation(doc, prim, { name }));   // and here
