@@ -1,5 +1,7 @@
-"""File size of anchored assets against plain ``KHR_gaussian_splatting`` (issue goals: float32
-anchors ≤ +35% at SH0 and ≤ +15% at SH3; quantized ≤ +15% at SH0 and ≤ +5% at SH3).
+"""File size of anchored assets against plain ``KHR_gaussian_splatting`` and against the
+compressed formats splats are delivered in (goals: float32 anchors ≤ +35% at SH0 and ≤ +15% at
+SH3; quantized ≤ +15% at SH0 and ≤ +5% at SH3; compact anchors with the rest pose
+SPZ-compressed ≤ 1.3× splat-transform's ``.spz`` at SH0 and ≤ 1.15× at SH3).
 
     python -m benchmarks.size [--splats N] [--faces F] [--quick | --large] [-v]
 
@@ -20,7 +22,20 @@ in both), the goal, and the rest-pose check of spec §Outputs on the file read b
 anchor mesh (FLOAT positions and indices). A second table puts the three float32 files side
 by side per SH degree with their ratios (what ``gsverse-convert`` writes without
 ``--quantize``: plain with ``--plain``, explicit with ``--anchors explicit``, compact by
-default). Sizes are deterministic: no timing is involved.
+default).
+
+A third table, the delivery table, puts side by side for the same splats (SH 0 and 3; 200k
+and 1M splats by default, the one size of ``--quick`` or ``--splats``): plain KHR, anchored
+explicit, anchored compact, anchored compact with the rest pose SPZ-compressed
+(``gsverse-convert --compress spz``), plain KHR SPZ-compressed, and PlayCanvas
+splat-transform's ``.spz`` (version 4, its default) and ``.sog`` of a PLY of the same splats
+in the same order (``tests/splat_transform``; ``.sog`` on the CPU). Its columns give the
+ratio compact+SPZ / ``.spz`` against the goal, the share of the anchor mesh and
+``faceCounts`` in the compact+SPZ file, and two checks of that file read back: the decoded
+rest pose against the input in units of the bounds spec §SPZ-compressed rest pose states
+(worst of position, scale, rotation and covariance; ≤ 1 holds), and the rest-pose check
+above (the derived anchors against the decoded rest pose). Sizes are deterministic: no
+timing is involved.
 """
 from __future__ import annotations
 
@@ -35,6 +50,10 @@ import numpy as np
 
 #: (SH degree, quantized) -> the goal on the overhead over plain KHR, in percent
 GOALS = {(0, False): 35.0, (3, False): 15.0, (0, True): 15.0, (3, True): 5.0}
+#: SH degree -> the goal on anchored compact + SPZ over splat-transform's ``.spz``
+SPZ_GOALS = {0: 1.3, 3: 1.15}
+#: The delivery table's sizes: (splats, faces)
+DELIVERY_SIZES = ((200_000, 20_000), (1_000_000, 100_000))
 
 
 def make_asset(n: int, faces: int, seed: int = 7):
@@ -154,6 +173,8 @@ def markdown(res: dict) -> str:
           "pose is the remap of the stored anchors) and FLOAT barycentrics where some leave "
           "[0, 1]."]
     L += ["", *ratios(res)]
+    if res.get("delivery"):
+        L += ["", *delivery_markdown(res["delivery"])]
     return "\n".join(L)
 
 
@@ -174,19 +195,161 @@ def ratios(res: dict) -> list[str]:
     return L
 
 
+def _spz_bound_check(path: Path, cloud) -> float:
+    """The decoded rest pose of the compressed file against the input ``cloud`` (same order),
+    in units of the bounds of spec §SPZ-compressed rest pose: the worst of position, scale,
+    rotation angle and covariance (≤ 1 holds)."""
+    from gsverse_format.io.gltf import read_gltf
+    from gsverse_format.io.spz_stream import quantization_bounds
+
+    got = read_gltf(path).primitives[0].splats
+    bound = quantization_bounds(12)
+    worst = float(np.abs(got.means.astype(np.float64) - cloud.means).max() / bound["position"])
+    worst = max(worst, float(np.abs(got.scales.astype(np.float64) / cloud.scales - 1).max()
+                             / bound["scale"]))
+    q0 = cloud.rotations.astype(np.float64)
+    q0 /= np.linalg.norm(q0, axis=1, keepdims=True)
+    q1 = got.rotations.astype(np.float64)
+    q1 /= np.linalg.norm(q1, axis=1, keepdims=True)
+    # the decoded quaternion may be the input turned by 180° about its own x and z (the frame
+    # change), which leaves the covariance alone: compare covariances for the angle
+    a, b = cloud.covariances().astype(np.float64), got.covariances().astype(np.float64)
+    rel = np.linalg.norm(a - b, axis=(1, 2)) / np.linalg.norm(a, axis=(1, 2))
+    return max(worst, float(rel.max() / bound["covariance"]))
+
+
+def _mesh_share(path: Path) -> tuple[float, float]:
+    """The fraction of the file the anchor mesh (positions, indices) and ``faceCounts`` take,
+    and the fraction 16-bit positions (``KHR_mesh_quantization`` SHORT VEC3, padded to 8 bytes
+    a vertex) would save."""
+    from gsverse_format.conformance.glb import unpack_glb
+    from gsverse_format.vocabulary import EXTENSION, KHR
+
+    doc, _ = unpack_glb(path.read_bytes())
+    views = set()
+    vertices = 0
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            ext = prim.get("extensions", {}).get(KHR, {}).get("extensions", {}).get(EXTENSION)
+            if ext is not None and "faceCounts" in ext:
+                views.add(doc["accessors"][ext["faceCounts"]]["bufferView"])
+            if prim.get("mode", 4) == 4:
+                views.add(doc["accessors"][prim["attributes"]["POSITION"]]["bufferView"])
+                vertices += doc["accessors"][prim["attributes"]["POSITION"]]["count"]
+                views.add(doc["accessors"][prim["indices"]]["bufferView"])
+    size = path.stat().st_size
+    return sum(doc["bufferViews"][v]["byteLength"] for v in views) / size, 4 * vertices / size
+
+
+def _splat_transform(ply: Path, out: Path) -> int | str:
+    """The size of splat-transform's output for ``ply`` (suffix of ``out``), or why not."""
+    import subprocess
+
+    from .convert import SPLAT_TRANSFORM, splat_transform_problem
+
+    problem = splat_transform_problem()
+    if problem is not None:
+        return problem
+    cmd = ["node", str(SPLAT_TRANSFORM), "-q", "-w", *(["-g", "cpu"] if out.suffix == ".sog"
+                                                       else []), str(ply), str(out)]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=3600)
+    if done.returncode != 0 or not out.is_file():
+        return "failed: " + (done.stderr.strip().splitlines() or ["?"])[-1][:120]
+    return out.stat().st_size
+
+
+def delivery(sizes, log=lambda msg: None) -> list[dict]:
+    """The delivery table's rows: per size and SH degree, the bytes of each layout."""
+    from gsverse_format.io.gltf import write_gltf
+    from gsverse_format.io.ply import write_splat_ply
+    from gsverse_format.model import SplatAsset, SplatCloud, SplatPrimitive
+
+    rows = []
+    for n, faces in sizes:
+        mesh, anchoring, cloud = make_asset(n, faces)
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = Path(tmp)
+            for degree in (0, 3):
+                k = (degree + 1) ** 2
+                c = SplatCloud(cloud.means, cloud.rotations, cloud.scales, cloud.opacities,
+                               np.ascontiguousarray(cloud.sh[:, :k]))
+                anchored = SplatAsset([SplatPrimitive(c, anchoring, "splats")])
+                plain = SplatAsset([SplatPrimitive(c, None, "splats")])
+                row: dict = {"n": n, "faces": mesh.face_count, "sh": degree}
+                for key, asset, kw in (
+                        ("plain", plain, {}), ("explicit", anchored, {"anchors": "explicit"}),
+                        ("compact", anchored, {"anchors": "compact"}),
+                        ("compact_spz", anchored, {"anchors": "compact", "compress": "spz"}),
+                        ("plain_spz", plain, {"compress": "spz"})):
+                    path = folder / f"{key}.glb"
+                    t0 = time.perf_counter()
+                    write_gltf(asset, path, **kw)
+                    row[key] = path.stat().st_size
+                    log(f"size: {n:,} SH{degree} {key} {row[key]:,} bytes "
+                        f"({time.perf_counter() - t0:.1f} s)")
+                row["spz_bound"] = _spz_bound_check(folder / "compact_spz.glb", c)
+                row["rest"] = _rest_check(folder / "compact_spz.glb")
+                row["mesh_share"], row["q16_saving"] = _mesh_share(folder / "compact_spz.glb")
+                ply = folder / "splats.ply"
+                write_splat_ply(c, ply)
+                for key, suffix in (("st_spz", ".spz"), ("st_sog", ".sog")):
+                    t0 = time.perf_counter()
+                    row[key] = _splat_transform(ply, folder / f"st{suffix}")
+                    log(f"size: {n:,} SH{degree} splat-transform {suffix} {row[key]} "
+                        f"({time.perf_counter() - t0:.1f} s)")
+                rows.append(row)
+        del mesh, anchoring, cloud
+    return rows
+
+
+def delivery_markdown(rows: list[dict]) -> list[str]:
+    """The delivery table: the same splats in every layout, bytes and ratios."""
+    def cell(v) -> str:
+        return f"{v:,}" if isinstance(v, int) else f"({v})"
+
+    L = ["Delivery: the same splats as plain KHR, anchored explicit, anchored compact "
+         "(default), anchored compact with the rest pose SPZ-compressed (`--compress spz`), "
+         "plain KHR SPZ-compressed, and splat-transform's .spz (v4) and .sog; goal: compact + "
+         "SPZ ≤ 1.3× the .spz at SH0, ≤ 1.15× at SH3. 'mesh' is the share of the anchor mesh "
+         "and faceCounts in the compact + SPZ file ('q16' what 16-bit anchor-mesh positions "
+         "would save of it); 'bound' the decoded rest pose against the "
+         "input in units of the stated SPZ bounds, 'rest' the derived anchors against the "
+         "decoded rest pose in units of the rest-pose tolerances (≤ 1 holds).", "",
+         "| splats | SH | plain KHR | explicit | compact | compact + SPZ | plain + SPZ | .spz | "
+         ".sog | compact+SPZ / .spz | goal | met | mesh (q16) | bound | rest (μ, Σ) |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        spz = r["st_spz"]
+        ratio = r["compact_spz"] / spz if isinstance(spz, int) else None
+        goal = SPZ_GOALS[r["sh"]]
+        L.append(f"| {r['n']:,} | {r['sh']} | {r['plain']:,} | {r['explicit']:,} | "
+                 f"{r['compact']:,} | {r['compact_spz']:,} | {r['plain_spz']:,} | {cell(spz)} | "
+                 f"{cell(r['st_sog'])} | {'' if ratio is None else f'{ratio:.3f}×'} | "
+                 f"≤ {goal}× | {'' if ratio is None else ('yes' if ratio <= goal else 'no')} | "
+                 f"{100 * r['mesh_share']:.1f}% ({100 * r['q16_saving']:.1f}%) | "
+                 f"{r['spz_bound']:.2f} | "
+                 f"{r['rest'][0]:.2g}, {r['rest'][1]:.2g} |")
+    return L
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.size", description=__doc__.split("\n")[0])
-    p.add_argument("--splats", type=int, default=200_000)
-    p.add_argument("--faces", type=int, default=20_000)
+    p.add_argument("--splats", type=int, default=None,
+                   help="one size for both tables (default: 200k, and 200k and 1M for the "
+                        "delivery table)")
+    p.add_argument("--faces", type=int, default=None)
     size = p.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help="100k splats on about 6k faces")
     size.add_argument("--large", action="store_true", help="1M splats on about 100k faces")
     p.add_argument("-v", "--verbose", action="store_true", help="progress lines on stderr")
     args = p.parse_args(argv)
     n, faces = ((100_000, 6_000) if args.quick else (1_000_000, 100_000) if args.large
-                else (args.splats, args.faces))
-    res = run(n, faces, log=(lambda msg: print(msg, file=sys.stderr, flush=True))
-              if args.verbose else (lambda msg: None))
+                else (args.splats or 200_000, args.faces or max(1, (args.splats or 200_000) // 10)))
+    log = (lambda msg: print(msg, file=sys.stderr, flush=True)) if args.verbose \
+        else (lambda msg: None)
+    res = run(n, faces, log=log)
+    sizes = ((n, faces),) if args.quick or args.splats else DELIVERY_SIZES
+    res["delivery"] = delivery(sizes, log=log)
     print(markdown(res))
     return 0
 

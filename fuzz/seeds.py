@@ -37,6 +37,7 @@ def seeds() -> list[tuple[str, bytes]]:
     for asset, kw in ((anchored, {}),
                       (anchored, {"quantize": {"barycentrics": "unsigned_short",
                                                "localRotation": "byte"}}),
+                      (anchored, {"anchors": "compact", "compress": "spz"}),
                       (SplatAsset([SplatPrimitive(gcloud, Anchoring(mesh, games), "g")]), {})):
         gltf = asset_to_gltf(asset, **kw)
         out.append((".glb", gltf_to_bytes(gltf, binary=True)))

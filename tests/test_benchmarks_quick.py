@@ -49,7 +49,9 @@ def test_convert_benchmark_quick():
 
 def test_size_benchmark_puts_the_three_layouts_side_by_side():
     """A small run of ``python -m benchmarks.size``: the side-by-side table has one row per SH
-    degree, and its sizes and ratios are those of the detailed rows (sizes are exact)."""
+    degree, and its sizes and ratios are those of the detailed rows (sizes are exact); the
+    delivery table adds the SPZ-compressed layouts and splat-transform's .spz, with the
+    decoded rest pose within the stated bounds."""
     import re
 
     env = dict(os.environ)
@@ -75,3 +77,18 @@ def test_size_benchmark_puts_the_three_layouts_side_by_side():
         assert plain < compact < explicit
         assert cells[4:] == [f"{explicit / plain:.3f}×", f"{compact / plain:.3f}×",
                              f"{explicit / compact:.3f}×"]
+    # the delivery table: the same splats in every layout, SPZ against splat-transform's
+    delivery = [line.strip("| ").split(" | ") for line in lines
+                if re.match(r"\| 3,000 \| [03] \|", line)]
+    assert [int(r[1]) for r in delivery] == [0, 3]
+    for r in delivery:
+        plain, explicit, compact, compact_spz, plain_spz = (int(c.replace(",", ""))
+                                                            for c in r[2:7])
+        assert (plain, explicit, compact) == (detail[int(r[1]), "plain KHR"],
+                                              detail[int(r[1]), "anchored, explicit"],
+                                              detail[int(r[1]), "anchored, compact (default)"])
+        assert plain_spz < compact_spz < compact / 2
+        spz = int(r[7].replace(",", ""))           # splat-transform is installed with the tests
+        assert r[9] == f"{compact_spz / spz:.3f}×"
+        assert float(r[13]) <= 1.0                  # decoded within the stated SPZ bounds
+        assert all(float(v) <= 1.0 for v in r[14].split(", "))

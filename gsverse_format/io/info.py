@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..model import GamesAnchors, LocalAnchors, SplatAsset, TriangleMesh
-from ..vocabulary import ANCHOR_FIELDS, DERIVED_KEYS, EXTENSION, FACE_COUNTS, KHR
+from ..vocabulary import ANCHOR_FIELDS, DERIVED_KEYS, EXTENSION, FACE_COUNTS, KHR, SPZ_EXTENSION
 from .registry import find_format
 
 __all__ = ["FileInfo", "describe", "format_text"]
@@ -126,6 +126,7 @@ def _gltf_parts(path: str, info: FileInfo) -> None:
 
     triangles = primitives = 0
     encodings: list[str] = []
+    compressed: list[bool] = []
     for mesh in doc.get("meshes") or []:
         for prim in (mesh or {}).get("primitives") or []:
             if not isinstance(prim, dict):
@@ -133,9 +134,22 @@ def _gltf_parts(path: str, info: FileInfo) -> None:
             ext = (prim.get("extensions") or {}).get(KHR)
             attrs = prim.get("attributes") or {}
             if isinstance(ext, dict):
+                spz = (ext.get("extensions") or {}).get(SPZ_EXTENSION)
+                if isinstance(spz, dict):   # placeholders hold nothing: the stream does
+                    view = spz.get("bufferView")
+                    views = doc.get("bufferViews") or []
+                    if isinstance(view, int) and 0 <= view < len(views) and \
+                            isinstance(views[view], dict):
+                        length = views[view].get("byteLength")
+                        parts["splats SPZ stream"] = parts.get("splats SPZ stream", 0) + (
+                            length if isinstance(length, int) else 0)
+                    compressed.append(True)
+                else:
+                    compressed.append(False)
                 for name, index in attrs.items():
                     sh = _SH_SEMANTIC.match(name)
-                    add(f"splats SH degree {sh.group(1)}" if sh else f"splats {name}", index)
+                    if not isinstance(spz, dict):
+                        add(f"splats SH degree {sh.group(1)}" if sh else f"splats {name}", index)
                 anchor = (ext.get("extensions") or {}).get(EXTENSION)
                 if isinstance(anchor, dict):
                     for key, index in anchor.items():
@@ -169,6 +183,9 @@ def _gltf_parts(path: str, info: FileInfo) -> None:
     info.meshes["triangles"] = triangles
     for entry, encoding in zip([p for p in info.primitives if p["anchoring"]], encodings):
         entry["anchoring"]["encoding"] = encoding
+    for entry, spz in zip(info.primitives, compressed):
+        if spz:
+            entry["compression"] = "spz"
 
 
 def _ply_parts(path: str, info: FileInfo) -> None:
@@ -263,6 +280,8 @@ def format_text(info: FileInfo) -> str:
             if "encoding" in a:
                 what += f", {a['encoding']} encoding"
             what += f"; anchor mesh {a['mesh_triangles']} triangles, {a['mesh_vertices']} vertices"
+        if p.get("compression"):
+            what += f"; rest pose {p['compression'].upper()}-compressed"
         body = p.get("physics")
         if body is not None:
             what += f"; physics {body['kind']}" + (f", {body['mass']:g} kg"

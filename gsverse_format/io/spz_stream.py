@@ -78,8 +78,10 @@ class SpzHeader:
 
 @dataclass
 class SpzArrays:
-    """Decoded attributes (float64) in the stream's frame: means (N, 3), quaternions (N, 4)
-    x, y, z, w, linear scales (N, 3), opacities (N,), SH (N, K, 3) with ``f_dc`` first."""
+    """Decoded attributes in the stream's frame: means (N, 3), quaternions (N, 4) x, y, z, w,
+    linear scales (N, 3), opacities (N,) in float64, and SH (N, K, 3) with ``f_dc`` first in
+    float32 (the coefficients above degree 0 are exact in binary32; ``f_dc`` is rounded once
+    from binary64). :func:`encode` takes float32 or float64."""
 
     means: np.ndarray
     rotations: np.ndarray
@@ -173,9 +175,12 @@ def decode(header: SpzHeader, parts: dict[str, np.ndarray]) -> SpzArrays:
         w = np.sqrt(np.maximum(0.0, 1.0 - (xyz * xyz).sum(axis=1)))
         xyzw = np.concatenate([xyz, w[:, None]], axis=1)
     rest = (header.degree + 1) ** 2 - 1
-    sh = np.empty((n, rest + 1, 3))
+    # float32: (b − 128) / 128 is exact in binary32, and f_dc is rounded once from binary64
+    sh = np.empty((n, rest + 1, 3), np.float32)
     sh[:, 0] = dc
-    sh[:, 1:] = (parts["sh"].reshape(n, rest, 3) - 128.0) / 128.0
+    np.subtract(parts["sh"].reshape(n, rest, 3), np.float32(128.0), out=sh[:, 1:],
+                dtype=np.float32)
+    sh[:, 1:] *= np.float32(1.0 / 128.0)
     return SpzArrays(means, xyzw, scales, opacity, sh)
 
 
@@ -212,7 +217,7 @@ def _quantize_sh(values: np.ndarray, bits: int) -> np.ndarray:
     return np.clip(codes, 0, 255).astype(np.uint8)
 
 
-def encode(arrays: SpzArrays, *, fractional_bits: int | None = None, level: int = 9) -> bytes:
+def encode(arrays: SpzArrays, *, fractional_bits: int | None = None, level: int = 6) -> bytes:
     """A version-3 stream of ``arrays`` (float values in the stream's frame), gzipped
     (``level``; no file name, time 0, so the bytes depend on the splats only). Scales outside
     :data:`SCALE_RANGE` and colours outside a byte are clamped; callers that care count them
