@@ -126,19 +126,28 @@ export async function inflateSliced(raw, limit) {
  * bytes without inflating further, when broken, truncated, or followed by anything but zero
  * bytes. The member's end is found by its trailer (CRC-32 and length of what it inflated to),
  * so browsers (which refuse any byte after the member) and Node (which ignores some) agree.
+ * Browsers refuse zero padding too: when `sizes` (the lengths the content may have) say where
+ * the member ends before its padding (its trailer's last 4 bytes are the content's length),
+ * only the member is handed over.
  * @param {Uint8Array} raw
  * @param {number} limit
  * @param {string} where
+ * @param {number[]} [sizes]
  * @returns {Promise<Uint8Array>}
  */
-export async function inflateBounded(raw, limit, where) {
+export async function inflateBounded(raw, limit, where, sizes = []) {
     if (typeof DecompressionStream !== 'function') {
         throw new AnchorError('SPZ_STREAM_INVALID', `${where}: this platform has no DecompressionStream('gzip') to inflate the SPZ stream`);
     }
-    const { out, error, over } = await inflateSliced(raw, limit);
-    if (over) throw new AnchorError('SPZ_STREAM_INVALID', `${where}: the SPZ stream inflates to more than the ${limit} bytes its splats hold`);
     let end = raw.length;
     while (end > 0 && raw[end - 1] === 0) --end;      // the member ends at or after `end`
+    let member = raw;
+    for (let e = Math.max(end, 18); e <= Math.min(raw.length, end + 4) && member === raw && end < raw.length; ++e) {
+        const isize = new DataView(raw.buffer, raw.byteOffset + e - 4, 4).getUint32(0, true);
+        if (sizes.includes(isize)) member = raw.subarray(0, e);
+    }
+    const { out, error, over } = await inflateSliced(member, limit);
+    if (over) throw new AnchorError('SPZ_STREAM_INVALID', `${where}: the SPZ stream inflates to more than the ${limit} bytes its splats hold`);
     const crc = crc32(out);
     const size = out.length >>> 0;
     let found = -1;
@@ -323,7 +332,8 @@ async function decodePrimitive(doc, prim, where) {
         throw new AnchorError('SIZE_LIMIT_EXCEEDED', `${what}: ${count} splats would decode to ${decoded} bytes, more than ${MAX_SPZ_AMPLIFICATION} times the ${length} bytes of their stream`);
     }
     const whereStream = `${what} (bufferViews[${v}])`;
-    const data = await inflateBounded(buffer.subarray(offset, offset + length), streamLimit(count), whereStream);
+    const sizes = [streamBytes(3, count, degree), streamBytes(2, count, degree)];
+    const data = await inflateBounded(buffer.subarray(offset, offset + length), streamLimit(count), whereStream, sizes);
     const h = parseSpzHeader(data, whereStream);
     if (h.count !== count) throw new AnchorError('SPZ_COUNT_MISMATCH', `${whereStream} holds ${h.count} splats but the primitive's accessors have ${count}`);
     if (h.degree !== degree) throw new AnchorError('SPZ_SH_MISMATCH', `${whereStream} has SH degree ${h.degree} but the primitive's SH attributes are of degree ${degree}`);

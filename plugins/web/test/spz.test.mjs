@@ -5,7 +5,7 @@
 import test from 'node:test';
 import assert from 'node:assert/strict';
 import { execFileSync, spawnSync } from 'node:child_process';
-import { existsSync, mkdtempSync, readFileSync, rmSync } from 'node:fs';
+import { existsSync, mkdtempSync, readFileSync, rmSync, writeFileSync } from 'node:fs';
 import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 import { fileURLToPath } from 'node:url';
@@ -17,6 +17,7 @@ import {
     SPZ_EXTENSION, decodeSpz, expandCompressed, inflateBounded, inflateSliced, parseSpzHeader, streamLimit,
 } from '../src/spz.js';
 import { KHR, EXT } from './glb-writer.mjs';
+import { launchPage, timeScale } from '../conformance/run-browser.mjs';
 
 const repoPython = fileURLToPath(new URL('../../../.venv/bin/python', import.meta.url));
 
@@ -219,9 +220,11 @@ test('placeholders and extension objects the reader refuses', { skip }, async ()
     await refuses(edited((json) => { for (const a of Object.values(attrs(json))) json.accessors[a].count = 50_000_000; }), 'SIZE_LIMIT_EXCEEDED');
 });
 
-test('a gzip bomb is stopped after its first slices, never inflated whole', { skip }, async () => {
-    // 1 GiB of zeros: a deflate block of 16 MiB of zeros ending on a byte boundary (sync
-    // flush), repeated 64 times, then an empty final block and a gzip trailer
+/**
+ * A gzip member of 1 GiB of zeros: a deflate block of 16 MiB of zeros ending on a byte boundary
+ * (sync flush), repeated 64 times, then an empty final block and a (wrong) trailer.
+ */
+function gzipBomb() {
     const block = deflateRawSync(new Uint8Array(1 << 24), { finishFlush: constants.Z_SYNC_FLUSH });
     const parts = [new Uint8Array([0x1f, 0x8b, 8, 0, 0, 0, 0, 0, 0, 255])];
     for (let i = 0; i < 64; ++i) parts.push(block);
@@ -229,6 +232,11 @@ test('a gzip bomb is stopped after its first slices, never inflated whole', { sk
     const bomb = new Uint8Array(parts.reduce((n, p) => n + p.length, 0));
     let o = 0;
     for (const p of parts) { bomb.set(p, o); o += p.length; }
+    return bomb;
+}
+
+test('a gzip bomb is stopped after its first slices, never inflated whole', { skip }, async () => {
+    const bomb = gzipBomb();
     const limit = streamLimit(3000);
     const run = await inflateSliced(bomb, limit);
     assert.equal(run.over, true);
@@ -236,4 +244,47 @@ test('a gzip bomb is stopped after its first slices, never inflated whole', { sk
     assert.ok(run.fed < bomb.length / 4, `fed ${run.fed} of ${bomb.length} compressed bytes`);
     const { json, bin } = capsule();
     await refuses(glb(json, bin, bomb), 'SPZ_STREAM_INVALID', new RegExp(`more than the ${limit} bytes`));
+});
+
+const chromium = process.env.CHROMIUM || '/usr/bin/chromium';
+
+test('in Chromium: the same expanded bytes, zero padding accepted, junk and a bomb refused', {
+    skip: skip || (existsSync(chromium) ? false : `no Chromium at ${chromium}`), timeout: 120_000 * timeScale(),
+}, async () => {
+    const { json, bin } = capsule();
+    const v = json.bufferViews[spzObject(json).bufferView];
+    const member = bin.slice(v.byteOffset || 0, (v.byteOffset || 0) + v.byteLength);
+    const padded = new Uint8Array(member.length + 7);
+    padded.set(member);
+    writeFileSync(join(dir, 'padded.glb'), glb(capsule().json, bin, padded));
+    writeFileSync(join(dir, 'junk.glb'), glb(capsule().json, bin, new Uint8Array([...member, 1, 2, 3])));
+    writeFileSync(join(dir, 'bomb.glb'), glb(capsule().json, bin, gzipBomb()));
+    const browser = await launchPage({ page: 'conformance/page/render.html', extraMounts: { '/assets/': dir } });
+    try {
+        const got = await browser.page.evaluate(async () => {
+            const { expandCompressed } = await import('/pkg/src/spz.js');
+            /** @param {string} name */
+            const run = async (name) => {
+                const bytes = new Uint8Array(await (await fetch(`/assets/${name}`)).arrayBuffer());
+                try {
+                    const out = await expandCompressed(bytes, { name });
+                    let s = '';
+                    for (let i = 0; i < out.length; i += 0x8000) s += String.fromCharCode(...out.subarray(i, i + 0x8000));
+                    return { b64: btoa(s) };
+                } catch (err) {
+                    return { code: /** @type {any} */ (err).code, message: /** @type {any} */ (err).message };
+                }
+            };
+            return { capsule: await run('capsule-spz.glb'), padded: await run('padded.glb'), junk: await run('junk.glb'), bomb: await run('bomb.glb') };
+        });
+        const expected = await expandCompressed(new Uint8Array(readFileSync(join(dir, 'capsule-spz.glb'))));
+        assert.deepEqual(new Uint8Array(Buffer.from(got.capsule.b64 ?? '', 'base64')), expected, got.capsule.message);
+        const padExpected = await expandCompressed(new Uint8Array(readFileSync(join(dir, 'padded.glb'))));
+        assert.deepEqual(new Uint8Array(Buffer.from(got.padded.b64 ?? '', 'base64')), padExpected, got.padded.message);
+        assert.equal(got.junk.code, 'SPZ_STREAM_INVALID', got.junk.message);
+        assert.equal(got.bomb.code, 'SPZ_STREAM_INVALID', got.bomb.message);
+        assert.match(got.bomb.message, /more than the \d+ bytes/);
+    } finally {
+        await browser.close();
+    }
 });
