@@ -262,7 +262,8 @@ test('in Chromium: the same expanded bytes, zero padding accepted, junk and a bo
     const browser = await launchPage({ page: 'conformance/page/render.html', extraMounts: { '/assets/': dir } });
     try {
         const got = await browser.page.evaluate(async () => {
-            const { expandCompressed } = await import('/pkg/src/spz.js');
+            const url = '/pkg/src/spz.js';     // the package as the page's server mounts it
+            const { expandCompressed } = await import(url);
             /** @param {string} name */
             const run = async (name) => {
                 const bytes = new Uint8Array(await (await fetch(`/assets/${name}`)).arrayBuffer());
