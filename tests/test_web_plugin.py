@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -49,7 +50,8 @@ def test_node_unit_tests_pass():
     scale = time_scale()
     proc = subprocess.run(["npm", "test", "--silent"], cwd=WEB, capture_output=True, text=True,
                           timeout=900 * scale, check=False,
-                          env=dict(os.environ, GSVERSE_TIME_SCALE=f"{scale:.2f}"))
+                          env=dict(os.environ, GSVERSE_TIME_SCALE=f"{scale:.2f}",
+                                   GSVERSE_PYTHON=sys.executable))   # test/spz_fixtures.py
     assert proc.returncode == 0, _explain(proc)
     assert "# fail 0" in proc.stdout, _explain(proc)
     assert "# skipped 0" in proc.stdout, _explain(proc)

@@ -34,8 +34,8 @@ def main() -> None:
     out = Path(sys.argv[1])
     out.mkdir(parents=True, exist_ok=True)
     glb = out / "capsule-spz.glb"
-    convert = Path(sys.executable).with_name("gsverse-convert")
-    subprocess.run([str(convert), str(ROOT / "examples/capsule/splats.ply"), str(glb), "--mesh",
+    subprocess.run([sys.executable, "-m", "gsverse_format.cli.convert",
+                    str(ROOT / "examples/capsule/splats.ply"), str(glb), "--mesh",
                     str(ROOT / "examples/capsule/mesh.obj"), "--compress", "spz", "-q"], check=True)
     dump(out, "capsule", gsverse_format.read(glb).primitives[0].splats)
     rng = np.random.default_rng(7)
