@@ -520,8 +520,9 @@ function loadContainer(app, bytes, name) {
 }
 
 /**
- * Load a GLB with anchored splats: the engine's container loader for the rest pose, our
- * reader for the anchors (refusals throw AnchorError), anchor data uploaded once, the remap
+ * Load a GLB with anchored splats: an SPZ-compressed rest pose decoded first (expandCompressed),
+ * the engine's container loader for the rest pose, our reader for the anchors (refusals throw
+ * AnchorError), anchor data uploaded once, the remap
  * installed as the instances' work-buffer modifier.
  * @param {AppBase} app
  * @param {string|Uint8Array|ArrayBuffer} source  URL or GLB bytes

@@ -324,8 +324,8 @@ export class AnchoredSplatMesh {
 }
 
 /**
- * Load a GLB with anchored splats for three.js + Spark: our reader for the anchors and the
- * splats (refusals throw AnchorError before anything is built), one Spark SplatMesh per splat
+ * Load a GLB with anchored splats for three.js + Spark (an SPZ-compressed rest pose decoded first,
+ * expandCompressed): our reader for the anchors and the splats (refusals throw AnchorError before anything is built), one Spark SplatMesh per splat
  * primitive under `root`, the remap installed as each anchored mesh's object modifier.
  * @param {string|Uint8Array|ArrayBuffer} source  URL or GLB bytes
  * @param {{name?: string, fault?: string|null}} [options]
