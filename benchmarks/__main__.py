@@ -44,14 +44,21 @@ def _meta(argv: list[str], quick: bool) -> dict:
         mem = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") / 2**30
     except (ValueError, OSError, AttributeError):
         mem = float("nan")
-    versions = {}
-    for mod in ("numpy", "scipy", "numba", "trimesh", "matplotlib", "open3d"):
-        try:
-            from importlib.metadata import version
+    from importlib.metadata import PackageNotFoundError, version
 
-            versions[mod] = version(mod if mod != "open3d" else "open3d")
-        except Exception:
-            versions[mod] = "absent"
+    versions = {}
+    #: module -> the distributions that install it (Open3D also comes as ``open3d-cpu``)
+    distributions = {"numpy": ("numpy",), "scipy": ("scipy",), "numba": ("numba",),
+                     "trimesh": ("trimesh",), "matplotlib": ("matplotlib",),
+                     "open3d": ("open3d", "open3d-cpu")}
+    for mod, names in distributions.items():
+        versions[mod] = "absent"
+        for name in names:
+            try:
+                versions[mod] = version(name) + ("" if name == mod else f" ({name})")
+                break
+            except PackageNotFoundError:
+                continue
     try:
         import numba
 

@@ -65,6 +65,8 @@ def test_clean_assets_pass_khronos_and_playcanvas(folder):
         for prim, pc in zip(ours, theirs):
             c = prim.splats
             assert pc["count"] == len(c)
+            if "spz" in path.name:   # PlayCanvas does not know the SPZ draft: it reads the
+                continue             # placeholders as zeros (tests/test_spz_gltf.py)
             np.testing.assert_array_equal(pc["position"], c.means)
             np.testing.assert_array_equal(pc["scale"], c.scales)
             np.testing.assert_array_equal(pc["opacity"], c.opacities)

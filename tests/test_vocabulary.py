@@ -28,6 +28,7 @@ def test_minimal_reader_allows_exactly_the_vocabulary_formats():
         assert minimal_reader.accessor_allowed(field.key, gtype, ctype, normalized) == \
             field.allows(gtype, ctype, normalized), (field.key, gtype, ctype, normalized)
     assert minimal_reader.KHR == V.KHR and minimal_reader.ANCHOR == V.EXTENSION
+    assert minimal_reader.SPZ == V.SPZ_EXTENSION
 
 
 def test_c_header_allows_exactly_the_vocabulary_formats(tmp_path):

@@ -8,6 +8,7 @@ binary is stored in the repository: every asset is built here from the data mode
 from __future__ import annotations
 
 import base64
+import gzip
 import copy
 import json
 import pathlib
@@ -22,6 +23,7 @@ from gsverse_format import EXTENSION_NAME
 from gsverse_format.binding import bind_local
 from gsverse_format.examples import example_mesh, example_splats
 from gsverse_format.io.gltf import asset_to_gltf
+from gsverse_format.vocabulary import SPZ_EXTENSION
 from gsverse_format.model import (Anchoring, Collider, GamesAnchors, Ground, Physics,
                                   SplatAsset, SplatCloud, SplatPrimitive, TriangleMesh)
 from gsverse_format.physics import PHYSICS, SHAPES
@@ -270,7 +272,10 @@ def clean_assets(folder: pathlib.Path) -> list[pathlib.Path]:
                                                      "plain")]), {}),
             ("physics_soft.glb", physics_asset(), {"anchors": "compact"}),
             ("physics_kinematic.gltf", physics_asset("kinematic"), {}),
-            ("physics_static.glb", physics_asset("static"), {})):
+            ("physics_static.glb", physics_asset("static"), {}),
+            ("compact_spz.glb", local_asset(), {"anchors": "compact", "compress": "spz"}),
+            ("plain_spz.gltf", SplatAsset([SplatPrimitive(example_splats(example_mesh(1), 20),
+                                                          None, "plain")]), {"compress": "spz"})):
         out.append(Doc.of(asset, **kw).write(folder, name))
     return out
 
@@ -889,6 +894,65 @@ def _(folder):
         pos = d.values(prim["attributes"]["POSITION"])
         pos[corners[2]] = pos[corners[0]]
     return _edited(folder, "derived_degenerate.glb", edit, _compact)
+
+
+# -- SPZ compression ----------------------------------------------------------------------
+def _spz() -> Doc:
+    return Doc.of(local_asset(), anchors="compact", compress="spz")
+
+
+def _spz_ext(d: Doc) -> dict:
+    return d.khr()["extensions"][SPZ_EXTENSION]
+
+
+def _restream(d: Doc, edit: Callable[[bytearray], bytes]) -> None:
+    """Replace the stream of the first primitive by ``edit`` of its inflated content, in a
+    buffer view of its own."""
+    view = d.doc["bufferViews"][_spz_ext(d)["bufferView"]]
+    start = view.get("byteOffset", 0)
+    data = bytearray(gzip.decompress(bytes(d.blob[start:start + view["byteLength"]])))
+    stream = gzip.compress(bytes(edit(data)), mtime=0)
+    d.blob += b"\0" * (-len(d.blob) % 4)
+    d.doc["bufferViews"].append({"buffer": 0, "byteOffset": len(d.blob),
+                                 "byteLength": len(stream)})
+    d.blob += stream + b"\0" * (-len(stream) % 4)
+    d.doc["buffers"][0]["byteLength"] = len(d.blob)
+    _spz_ext(d)["bufferView"] = len(d.doc["bufferViews"]) - 1
+
+
+@trigger("SPZ_STREAM_INVALID")
+def _(folder):
+    return _edited(folder, "spz_truncated.glb", lambda d: _restream(d, lambda b: b[:-9]), _spz)
+
+
+@trigger("SPZ_COUNT_MISMATCH")
+def _(folder):
+    def edit(d):
+        _restream(d, lambda b: b[:8] + struct.pack("<I", struct.unpack_from("<I", b, 8)[0] - 1)
+                  + b[12:])
+    return _edited(folder, "spz_count.glb", edit, _spz)
+
+
+@trigger("SPZ_SH_MISMATCH")
+def _(folder):
+    return _edited(folder, "spz_degree.glb",
+                   lambda d: _restream(d, lambda b: b[:12] + b"\x00" + b[13:]), _spz)
+
+
+@trigger("SPZ_BUFFER_VIEW_INVALID")
+def _(folder):
+    return _edited(folder, "spz_view.glb", lambda d: _spz_ext(d).update(bufferView=999), _spz)
+
+
+@trigger("SPZ_EXPLICIT_ANCHORS")
+def _(folder):
+    def edit(d):
+        explicit = Doc.of(local_asset(), anchors="explicit")
+        ext = explicit.ext()
+        for key in ("barycentrics", "normalOffset", "localRotation", "localScale"):
+            d.ext()[key] = d.add_accessor(explicit.values(ext[key]), explicit.doc["accessors"][
+                ext[key]]["componentType"], explicit.doc["accessors"][ext[key]]["type"])
+    return _edited(folder, "spz_explicit.glb", edit, _spz)
 
 
 # -- rest pose ----------------------------------------------------------------------------

@@ -10,7 +10,7 @@ trigger, location and fix; ``spec/validation.md`` is generated from it. The entr
 by group, as rows (:mod:`.issues_rows`), in ``issues_container`` (the file, GLB, JSON, buffers,
 accessors, the validator itself), ``issues_khr``, ``issues_anchor`` (the extension object, the
 anchor mesh, the rest pose), ``issues_compact``, ``issues_rig``, ``issues_fit``,
-``issues_physics``, ``issues_input`` and ``issues_usd``; this module makes them entries, once for all.
+``issues_physics``, ``issues_spz``, ``issues_input`` and ``issues_usd``; this module makes them entries, once for all.
 """
 from __future__ import annotations
 
@@ -29,6 +29,7 @@ from .issues_khr import KHR_ENTRIES
 from .issues_physics import PHYSICS_ENTRIES
 from .issues_rig import RIG_ENTRIES
 from .issues_rows import Flags, Row
+from .issues_spz import SPZ_ENTRIES
 from .issues_usd import USD_ENTRIES, USD_SHARED
 
 __all__ = ["Severity", "CodeInfo", "CATALOGUE", "Finding", "Issues", "TOLERANCES",
@@ -121,7 +122,7 @@ def _entry(row: Row) -> CodeInfo:
 #: Every row, in catalogue order (the order of ``spec/validation.md`` and ``--list-codes``).
 _ROWS: list[Row] = (CONTAINER_ENTRIES + KHR_ENTRIES + ANCHOR_ENTRIES + USD_ENTRIES
                     + VALIDATOR_ENTRIES + RIG_ENTRIES + COMPACT_ENTRIES + FIT_ENTRIES
-                    + PHYSICS_ENTRIES + INPUT_ENTRIES)
+                    + PHYSICS_ENTRIES + SPZ_ENTRIES + INPUT_ENTRIES)
 
 #: Every code, in catalogue order.
 CATALOGUE: dict[Code, CodeInfo] = {row[0]: _entry(row) for row in _ROWS}

@@ -24,7 +24,8 @@ from .container import Context
 from .values import (RestPose, check_finite, check_nonnegative, check_opacities,
                      check_unit_quaternions)
 
-__all__ = ["SplatData", "check_splat_primitive", "quantization_step"]
+__all__ = ["SplatData", "check_splat_primitive", "check_properties", "check_semantics",
+           "quantization_step"]
 
 _SH_RE = re.compile(r"SH_DEGREE_(\d+)_COEF_(\d+)")
 _REQUIRED = ("POSITION", f"{KHR}:ROTATION", f"{KHR}:SCALE", f"{KHR}:OPACITY",
@@ -72,7 +73,7 @@ def quantization_step(layout: AccessorLayout) -> float:
     return _STEP.get(layout.component_type, 0.0) if layout.normalized else 0.0
 
 
-def _check_properties(ctx: Context, khr: Any, pointer: str) -> None:
+def check_properties(ctx: Context, khr: Any, pointer: str) -> None:
     if not isinstance(khr, dict):
         ctx.issues.add(Code.KHR_PROPERTY_INVALID, f"the {KHR} extension must be an object",
                        pointer=pointer)
@@ -95,7 +96,7 @@ def _check_properties(ctx: Context, khr: Any, pointer: str) -> None:
                        pointer=f"{pointer}/extensions")
 
 
-def _check_semantics(ctx: Context, attrs: dict, pointer: str) -> None:
+def check_semantics(ctx: Context, attrs: dict, pointer: str) -> None:
     present: set[tuple[int, int]] = set()
     for name in attrs:
         if not name.startswith(KHR + ":"):
@@ -148,11 +149,11 @@ def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) ->
     if prim.get("mode", 4) != 0:
         ctx.issues.add(Code.KHR_PRIMITIVE_NOT_POINTS, f"a {KHR} primitive must have mode POINTS "
                        f"(0), not {prim.get('mode', 4)!r}", pointer=f"{pointer}/mode")
-    _check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
+    check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
     attrs = prim.get("attributes", {})
     if not isinstance(attrs, dict):
         return data
-    _check_semantics(ctx, attrs, pointer)
+    check_semantics(ctx, attrs, pointer)
     used = ctx.doc.get("extensionsUsed", [])
     quantized_positions = isinstance(used, list) and "KHR_mesh_quantization" in used
 

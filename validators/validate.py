@@ -14,9 +14,10 @@ import numpy as np
 
 from gsverse_format.version import __version__
 from gsverse_format.codes import Code
-from gsverse_format.vocabulary import EXTENSION, KHR
+from gsverse_format.vocabulary import EXTENSION, KHR, SPZ_EXTENSION
 from gsverse_format.io.gltf import GltfFormatError
 from gsverse_format.io.gltf.scene import check_instancing
+from gsverse_format.io.gltf.spz import is_compressed
 
 from .anchor import check_anchor
 from .container import GLB_MIME, GLTF_MIME, Context, Options, file_problem, load_container
@@ -25,6 +26,7 @@ from .graph import check_mesh_indices, check_node_graph
 from .physics import check_physics
 from .issues import Finding, Issues, Severity
 from .khr import check_splat_primitive
+from .spz import check_compressed_anchor, check_compressed_primitive
 from .usd import usd_mime_type, validate_usd
 
 #: File name suffixes validated as USD.
@@ -131,6 +133,7 @@ def _check_document(ctx: Context, info: dict) -> None:
                                pointer=f"/extensionsRequired/{i}")
     khr_uses: list[str] = []
     anchor_uses: list[str] = []
+    spz_uses: list[str] = []
     splats = anchored = total = 0
     failed = False  # a bug in a primitive's checks: its splats are not counted
     for m, mesh in enumerate(ctx.array("meshes")):
@@ -146,7 +149,12 @@ def _check_document(ctx: Context, info: dict) -> None:
             khr = extensions[KHR]
             khr_uses.append(f"{pointer}/extensions/{KHR}")
             try:
-                data = check_splat_primitive(ctx, m, p, prim, khr)
+                spz = is_compressed(khr)
+                if spz:
+                    spz_uses.append(f"{pointer}/extensions/{KHR}/extensions/{SPZ_EXTENSION}")
+                    data = check_compressed_primitive(ctx, m, p, prim, khr)
+                else:
+                    data = check_splat_primitive(ctx, m, p, prim, khr)
                 splats += 1
                 total += data.count or 0
                 nested = khr.get("extensions") if isinstance(khr, dict) else None
@@ -154,13 +162,15 @@ def _check_document(ctx: Context, info: dict) -> None:
                     apointer = f"{pointer}/extensions/{KHR}/extensions/{EXTENSION}"
                     anchor_uses.append(apointer)
                     anchored += 1
+                    if spz:
+                        check_compressed_anchor(ctx, nested[EXTENSION], apointer)
                     check_anchor(ctx, data, nested[EXTENSION], apointer)
             except Exception as err:  # boundary of one primitive's checks: a bug there is
                 _internal(ctx.issues, err, pointer)  # INTERNAL_ERROR, the others still run
                 failed = True
     if not khr_uses:
         ctx.issues.add(Code.KHR_NO_SPLATS, f"the file has no {KHR} primitive")
-    for name, uses in ((KHR, khr_uses), (EXTENSION, anchor_uses)):
+    for name, uses in ((KHR, khr_uses), (EXTENSION, anchor_uses), (SPZ_EXTENSION, spz_uses)):
         if uses and name not in used:
             ctx.issues.add(Code.EXTENSION_NOT_DECLARED, f"{name} is used ({len(uses)} time(s)) "
                            f"but not listed in extensionsUsed", pointer=uses[0])

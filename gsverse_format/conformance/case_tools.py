@@ -57,6 +57,8 @@ class RemapCase:
     quantize: dict | None = None
     #: how the writer stores the anchors: ``explicit`` or ``compact`` (version 1.2)
     encoding: str = "explicit"
+    #: ``"spz"``: the rest pose written as an SPZ stream (version 1.2; compact anchors only)
+    compress: str | None = None
     skinned_asset: bytes | None = None
     #: codes ``gsverse-validate`` reports for the asset although a plugin must remap it
     validator_codes: list[str] = field(default_factory=list)

@@ -39,6 +39,7 @@ from .cases_compact import compact_cases
 from .cases_encodings import encoding_cases
 from .cases_extreme import extreme_cases
 from .cases_rules import rule_cases
+from .cases_spz import spz_cases
 from .skin import sample_skin, skinned_tube
 
 __all__ = ["Pose", "RemapCase", "remap_cases", "LAWS"]
@@ -257,4 +258,4 @@ def remap_cases() -> list[RemapCase]:
     """All remap cases, in suite order."""
     return (_source_cases() + _per_face_cases() + _vertex_edge_cases() + _quantized_cases()
             + _face_index_cases() + extreme_cases() + rule_cases() + encoding_cases()
-            + compact_cases())
+            + compact_cases() + spz_cases())

@@ -7,6 +7,10 @@ For each case of the suite in ``DIR`` the runner reads ``RESULTS/<id>/`` (layout
   covariances after every pose, and opacity and SH after the last pose (pass-through), each
   against the tolerance in the case manifest. Covariances are compared, never rotation/scale
   pairs (which are not unique): dumps of rotation + scale are turned into R diag(s)² Rᵀ first;
+* ``encoding:spz`` remap cases, in addition — the means and covariances after every pose
+  against the remap of the *uncompressed* rest pose, within the per-splat bound the case ships
+  (spec §SPZ-compressed rest pose) plus the case's usual tolerance (quantities
+  ``mean (uncompressed)`` and ``covariance (uncompressed)``);
 * invalid cases — that the plugin refused the asset (a ``refused`` file);
 * render cases (the render level, :mod:`.render_check`) — the engine's picture of every frame
   against the reference picture: PSNR over the covered pixels and coverage IoU.
@@ -16,6 +20,13 @@ cases) or ``all``.
 
 A case passes when every value is finite and within tolerance. The report names, per case,
 the worst error relative to its tolerance and where it is (dump, pose, splat).
+
+*Optional features.* An implementation may declare, in ``RESULTS/harness.json``, the optional
+features it does not implement: ``"unsupported": ["encoding:spz"]``. Only the tags of
+:data:`OPTIONAL_TAGS` can be declared; a case carrying a declared tag is reported
+``unsupported`` (neither passed nor failed, counted apart, listed in the report) whatever its
+dumps hold, and :attr:`Report.ok` does not count it against the run. A declaration of any other
+tag is ignored (the case is checked as usual).
 """
 from __future__ import annotations
 
@@ -30,7 +41,12 @@ import numpy as np
 from ..errors import UsageError
 from .render_check import FrameScore, check_render_case
 
-__all__ = ["Check", "CaseResult", "Report", "check_results", "format_text", "quat_to_matrix"]
+__all__ = ["Check", "CaseResult", "Report", "check_results", "format_text", "quat_to_matrix",
+           "OPTIONAL_TAGS"]
+
+#: Case tags of the optional features an implementation may declare unsupported in
+#: ``harness.json`` (``"unsupported": [...]``): the SPZ-compressed rest pose (version 1.2).
+OPTIONAL_TAGS = ("encoding:spz",)
 
 
 @dataclass
@@ -51,7 +67,7 @@ class Check:
 class CaseResult:
     id: str
     kind: str
-    status: str              # "pass", "fail" or "missing"
+    status: str              # "pass", "fail", "missing" or "unsupported" (declared)
     message: str = ""
     worst: Check | None = None
     checks: list[Check] = field(default_factory=list)
@@ -75,11 +91,14 @@ class Report:
                 "passed": sum(c.status == "pass" for c in self.cases),
                 "failed": sum(c.status == "fail" for c in self.cases),
                 "missing": sum(c.status == "missing" for c in self.cases),
+                "unsupported": sum(c.status == "unsupported" for c in self.cases),
                 "render": sum(c.kind == "render" for c in self.cases)}
 
     @property
     def ok(self) -> bool:
-        return all(c.status == "pass" for c in self.cases)
+        """Every case passed, except those of an optional feature the harness declared
+        unsupported."""
+        return all(c.status in ("pass", "unsupported") for c in self.cases)
 
     def to_json(self) -> dict:
         def clean(value):
@@ -248,6 +267,8 @@ def _check_remap(case_dir: Path, manifest: dict, folder: Path) -> CaseResult:
             checks.append(_check_cov(_read_cov(folder, stem, n),
                                      _cov_matrix(ref(exp["cov"], (n, 6))), rest_cov,
                                      tol["covariance"], stem, p))
+        if "compression" in manifest:
+            checks += _check_uncompressed(manifest, folder, ref, rest_cov)
     except _DumpError as err:
         return CaseResult(cid, "remap", "fail", str(err), None, checks)
     worst = max(checks, key=lambda c: c.ratio)
@@ -259,6 +280,32 @@ def _check_remap(case_dir: Path, manifest: dict, folder: Path) -> CaseResult:
     status = "pass" if all(c.ratio <= 1.0 for c in checks) else "fail"
     msg = "" if status == "pass" else _describe(worst)
     return CaseResult(cid, "remap", status, msg, worst, list(per.values()))
+
+
+def _check_uncompressed(manifest: dict, folder: Path, ref, rest_cov: np.ndarray) -> list[Check]:
+    """``encoding:spz``: every pose against the remap of the uncompressed rest pose, within the
+    shipped bound (per splat: mean, covariance) plus the case's usual tolerance."""
+    n, tol = manifest["splat_count"], manifest["tolerances"]
+    out = []
+    for p, exp in enumerate(manifest["compression"]["uncompressed"]):
+        stem = f"pose_{p:03d}"
+        bound = ref(exp["bound"], (n, 2))
+        got = _read(folder, f"{stem}.means", (n, 3))
+        err = np.linalg.norm(got - ref(exp["means"], (n, 3)), axis=1)
+        err = np.where(np.all(np.isfinite(got), axis=1), err, np.inf)
+        out.append(_worst("mean (uncompressed)", stem, p, err,
+                          bound[:, 0] + _pose_tolerance(tol["mean"], "atol", p)))
+        got_cov = _read_cov(folder, stem, n)
+        expected = _cov_matrix(ref(exp["cov"], (n, 6)))
+        err = np.linalg.norm(got_cov - expected, axis=(1, 2))
+        err = np.where(np.all(np.isfinite(got_cov), axis=(1, 2)), err, np.inf)
+        # the usual covariance tolerance of each splat, recomputed as _check_cov does
+        scale = np.maximum(np.linalg.norm(expected, axis=(1, 2)),
+                           tol["covariance"]["floor"] * np.linalg.norm(rest_cov, axis=(1, 2)))
+        out.append(_worst("covariance (uncompressed)", stem, p, err,
+                          bound[:, 1] + _pose_tolerance(tol["covariance"], "rtol", p) * scale
+                          + np.finfo(np.float64).tiny))
+    return out
 
 
 def _describe(c: Check) -> str:
@@ -308,6 +355,8 @@ def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike, 
             harness = json.loads((results / "harness.json").read_text(encoding="utf-8"))
         except ValueError:
             harness = {"error": "harness.json is not valid JSON"}
+    declared = harness.get("unsupported", []) if isinstance(harness, dict) else []
+    unsupported = {t for t in declared if isinstance(t, str) and t in OPTIONAL_TAGS}
     out = []
     entries = (index["cases"] if level != "render" else []) + \
         (index.get("render_cases", []) if level != "numbers" else [])
@@ -315,7 +364,12 @@ def check_results(suite_dir: str | os.PathLike, results_dir: str | os.PathLike, 
         case_dir = root / entry["path"]
         manifest = json.loads((case_dir / "case.json").read_text(encoding="utf-8"))
         folder = results / manifest["id"]
-        if not folder.is_dir():
+        skipped = sorted(unsupported.intersection(manifest.get("tags", [])))
+        if skipped:
+            out.append(CaseResult(manifest["id"], manifest["kind"], "unsupported",
+                                  f"not supported by the harness ({', '.join(skipped)}); "
+                                  f"not checked"))
+        elif not folder.is_dir():
             out.append(CaseResult(manifest["id"], manifest["kind"], "missing",
                                   f"no results folder {manifest['id']}/"))
         elif manifest["kind"] == "invalid":
@@ -350,6 +404,9 @@ def format_text(report: Report, *, failures_only: bool = False) -> str:
                 detail = c.message
         lines.append(f"{status:7} {c.id:{width}}  {detail}")
     s = report.summary
-    lines.append(f"{s['passed']} passed, {s['failed']} failed, {s['missing']} missing, "
-                 f"{s['total']} cases (level {report.level}: {s['render']} render cases)")
+    unsupported = (f", {s['unsupported']} not supported (declared by the harness)"
+                   if s["unsupported"] else "")
+    lines.append(f"{s['passed']} passed, {s['failed']} failed, {s['missing']} missing"
+                 f"{unsupported}, {s['total']} cases (level {report.level}: {s['render']} "
+                 f"render cases)")
     return "\n".join(lines)

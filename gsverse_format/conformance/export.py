@@ -40,6 +40,8 @@ from ..remapping.reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
 from . import cases_rig as rig_defs
 from . import invalid_cases as invalid_defs
+from .cases_spz import spz_invalid_cases
+from .spz_export import uncompressed_expectation
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
 from .render_export import export_render_cases
@@ -263,7 +265,7 @@ def _consistent_asset(case: case_defs.RemapCase, path: Path) -> SplatPrimitive:
     """Write the asset; if quantization changed the anchors, rewrite the stored rest pose from
     the anchors as stored (so that the file is rest-consistent); return it as read back."""
     data = gltf_to_bytes(asset_to_gltf(_initial_asset(case), quantize=case.quantize,
-                                       anchors=case.encoding))
+                                       anchors=case.encoding, compress=case.compress))
     _write(path, data)
     # derived anchors come from the stored rest pose: consistent by construction
     derived = "barycentrics" not in _splat_accessors(unpack_glb(data)[0])[1]
@@ -383,6 +385,10 @@ def _export_remap(case: case_defs.RemapCase, case_dir: Path) -> dict:
         extra = {"validator_codes": case.validator_codes, "note": case.note}
     if rig is not None:
         extra["rig"] = rig.layout
+    if case.compress:   # the second expectation: the remap of the uncompressed rest pose
+        extra["compression"] = uncompressed_expectation(
+            _initial_asset(case), prim, asset_path, pose_arrays, case_dir, _write_array, cov6,
+            read_asset)
     tolerances = _tolerances(terms, per_pose)
     if rig is not None:
         tolerances["mean"]["reason"] += " " + RIG_MEAN_REASON
@@ -502,7 +508,13 @@ Render cases: your engine's picture of every frame, same size as the reference, 
 Any case: `error`, a text file, when the harness itself failed on the case (it fails).
 
 Optional: `RESULTS/harness.json` (an object: name, version, precision, engine...) is echoed in
-the report.
+the report. `"unsupported": ["encoding:spz"]` in it declares that the plugin does not decode
+SPZ-compressed rest poses: the cases tagged so are reported UNSUPPORTED, not checked (the only
+optional feature).
+
+encoding:spz cases also ship expected/uncompressed/pose_NNN.{means,cov,bound}.f64: the remap of
+the uncompressed rest pose and the per-splat bound (mean, covariance) within which the check
+compares your outputs with it (case.json "compression").
 """
 
 
@@ -538,7 +550,8 @@ def export_suite(directory: str | os.PathLike) -> dict:
         cache: dict = {}
         scratch = tmp / ".bases"
         scratch.mkdir()
-        for invalid in invalid_defs.invalid_cases() + rig_defs.rig_invalid_cases():
+        for invalid in (invalid_defs.invalid_cases() + rig_defs.rig_invalid_cases()
+                        + spz_invalid_cases()):
             manifest = _export_invalid(invalid, tmp / "cases" / invalid.id, cache, scratch)
             _write(tmp / "cases" / invalid.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))

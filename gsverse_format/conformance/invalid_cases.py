@@ -485,12 +485,16 @@ def invalid_cases() -> list[InvalidCase]:
 
 def invalid_base_case(kind: str) -> RemapCase:
     """The small valid asset an invalid case is derived from (``local`` or ``games``, written
-    with explicit anchors; ``local-compact`` or ``games-compact``: with compact ones)."""
+    with explicit anchors; ``local-compact`` or ``games-compact``: with compact ones;
+    ``local-spz``: compact, the rest pose SPZ-compressed)."""
     rng = case_rng(f"invalid-base-{kind}")
     kind, _, encoding = kind.partition("-")
+    compress = "spz" if encoding == "spz" else None
+    encoding = "compact" if compress else encoding
     mesh = tube_mesh()
     face = faces_from_counts(np.arange(mesh.face_count) % 3 == 0)
     law = "affine" if kind == "local" else None
     anchors = make_anchors(kind, law, mesh, face, random_barycentrics(rng, len(face)), rng)
     return make_case(f"invalid-base-{kind}", "base of the invalid cases", [], mesh, anchors,
-                     [rest_pose(mesh)], rng, 0, encoding=encoding or "explicit")
+                     [rest_pose(mesh)], rng, 0, encoding=encoding or "explicit",
+                     compress=compress)

@@ -18,6 +18,12 @@ the order it does it, so that it can be ported line by line to C#, C++ or GDScri
    rest pose when the asset stores none (:func:`derive_local`), refusing splats on faces
    degenerate at rest.
 
+(Version 1.2) A rest pose stored as an SPZ stream (``KHR_gaussian_splatting_compression_spz_2``,
+spec §SPZ-compressed rest pose) is inflated with the standard library's zlib, never past the
+bytes the placeholders' splat count needs, decoded per the spec's table in binary64, turned
+from SPZ's frame to glTF's and rounded once to float32 (:func:`decode_spz`); it is then
+returned as FLOAT accessors, and derived anchors come from those float32 values.
+
 Everything is returned raw (stored dtype, component type, normalized flag), so that an
 implementation under test can do its own dequantization. Only GLB files with their data in the
 binary chunk are supported (which is what the conformance suite contains).
@@ -25,7 +31,9 @@ binary chunk are supported (which is what the conformance suite contains).
 from __future__ import annotations
 
 import json
+import math
 import struct
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,10 +42,11 @@ from .glb import (BYTE, COMPONENT_DTYPES, FLOAT, SHORT, TYPE_COMPONENTS, UNSIGNE
                   UNSIGNED_INT, UNSIGNED_SHORT)
 
 __all__ = ["Refused", "Raw", "RawAsset", "read_anchored_glb", "dequantize", "ANCHOR_ACCESSORS",
-           "accessor_allowed", "face_index", "derive_local"]
+           "accessor_allowed", "face_index", "derive_local", "decode_spz", "SPZ"]
 
 KHR = "KHR_gaussian_splatting"
 ANCHOR = "GSVERSE_gaussian_splatting_mesh_anchor"
+SPZ = "KHR_gaussian_splatting_compression_spz_2"
 
 #: property -> (accessor type, allowed (componentType, normalized) pairs), spec §Accessor
 #: component types and dequantization.
@@ -100,6 +109,8 @@ class RawAsset:
     face_counts: Raw | None = None
     #: version 1.2: a ``local`` primitive without stored anchors (see :func:`derive_local`)
     derived: bool = False
+    #: version 1.2: the rest pose was decoded from an SPZ stream (see :func:`decode_spz`)
+    compressed: bool = False
 
     @property
     def count(self) -> int:
@@ -212,19 +223,12 @@ def read_anchored_glb(path) -> RawAsset:
                  f"{KHR}:SH_DEGREE_0_COEF_0"):
         if name not in attrs:
             raise Refused(f"splat primitive lacks {name}")
-    positions = d.accessor(attrs["POSITION"], "POSITION", ("VEC3",))
-    if positions.component_type != FLOAT:
-        raise Refused("POSITION must be FLOAT")
+    compressed = SPZ in (khr.get("extensions") or {})
+    if compressed:
+        positions, rotations, scales, opacities, sh = _read_spz(d, khr, attrs)
+    else:
+        positions, rotations, scales, opacities, sh = _read_rest_pose(d, attrs)
     n = positions.values.shape[0]
-    rotations = d.accessor(attrs[f"{KHR}:ROTATION"], "ROTATION", ("VEC4",))
-    scales = d.accessor(attrs[f"{KHR}:SCALE"], "SCALE", ("VEC3",))
-    opacities = d.accessor(attrs[f"{KHR}:OPACITY"], "OPACITY", ("SCALAR",))
-    sh = []
-    for level in range(4):
-        names = [f"{KHR}:SH_DEGREE_{level}_COEF_{c}" for c in range(2 * level + 1)]
-        if not all(nm in attrs for nm in names):
-            break
-        sh += [d.accessor(attrs[nm], nm, ("VEC3",)) for nm in names]
     for raw, what in [(rotations, "ROTATION"), (scales, "SCALE"), (opacities, "OPACITY")] + \
             [(s, "SH") for s in sh]:
         if raw.values.shape[0] != n:
@@ -341,7 +345,165 @@ def read_anchored_glb(path) -> RawAsset:
             raise Refused(f"localScale of splat {int(negative[0])} is negative")
     return RawAsset(positions, rotations, scales, opacities, sh,
                     apos.values.astype(np.float32), faces, profile, deformation, anchors,
-                    counts, derived)
+                    counts, derived, compressed)
+
+
+def _read_rest_pose(d: _Doc, attrs: dict) -> tuple:
+    positions = d.accessor(attrs["POSITION"], "POSITION", ("VEC3",))
+    if positions.component_type != FLOAT:
+        raise Refused("POSITION must be FLOAT")
+    rotations = d.accessor(attrs[f"{KHR}:ROTATION"], "ROTATION", ("VEC4",))
+    scales = d.accessor(attrs[f"{KHR}:SCALE"], "SCALE", ("VEC3",))
+    opacities = d.accessor(attrs[f"{KHR}:OPACITY"], "OPACITY", ("SCALAR",))
+    sh = []
+    for level in range(4):
+        names = [f"{KHR}:SH_DEGREE_{level}_COEF_{c}" for c in range(2 * level + 1)]
+        if not all(nm in attrs for nm in names):
+            break
+        sh += [d.accessor(attrs[nm], nm, ("VEC3",)) for nm in names]
+    return positions, rotations, scales, opacities, sh
+
+
+#: SPZ -> glTF (180 degrees about Y): signs of x, y, z of positions and quaternions, and of SH
+#: coefficient k = 0 .. 15 (spec §SPZ-compressed rest pose, s_k).
+_SPZ_AXIS = np.array([-1.0, 1.0, -1.0])
+_SPZ_SH_SIGN = np.array([1, 1, -1, -1, -1, -1, 1, 1, 1, 1, 1, 1, -1, -1, -1, -1], np.float64)
+
+
+def _spz_stream_bytes(version: int, count: int, degree: int) -> int:
+    """Header and attributes of ``count`` splats: 9 + 1 + 3 + 3 + (3 or 4) + 3 ((d+1)^2 - 1)."""
+    return 16 + count * (16 + (4 if version >= 3 else 3) + 3 * ((degree + 1) ** 2 - 1))
+
+
+def _read_spz(d: _Doc, khr: dict, attrs: dict) -> tuple:
+    """The rest pose of a compressed primitive as FLOAT Raw accessors (glTF frame, float32)."""
+    shapes = {"POSITION": "VEC3", f"{KHR}:ROTATION": "VEC4", f"{KHR}:SCALE": "VEC3",
+              f"{KHR}:OPACITY": "SCALAR"}
+    degree = -1
+    while degree < 3 and f"{KHR}:SH_DEGREE_{degree + 1}_COEF_0" in attrs:
+        degree += 1
+        shapes.update({f"{KHR}:SH_DEGREE_{degree}_COEF_{c}": "VEC3"
+                       for c in range(2 * degree + 1)})
+    if any(a.startswith(f"{KHR}:SH_DEGREE_") and a not in shapes for a in attrs):
+        raise Refused("the SH attributes of the compressed primitive are not exactly degrees "
+                      f"0 to {degree}")
+    count = None
+    for name, gtype in shapes.items():
+        acc = d.get("accessors", attrs[name] if name in attrs else None, f"placeholder {name}")
+        if acc.get("type") != gtype or acc.get("componentType") != FLOAT:
+            raise Refused(f"placeholder {name} must be FLOAT {gtype}")
+        c = acc.get("count")
+        if count is None:
+            count = c
+        if not isinstance(c, int) or isinstance(c, bool) or c < 0 or c != count:
+            raise Refused(f"placeholder {name} has count {c!r}, POSITION has {count!r}")
+    if "COLOR_0" in attrs:      # the fallback colour: any type glTF allows, the same count
+        c = d.get("accessors", attrs["COLOR_0"], "placeholder COLOR_0").get("count")
+        if c != count:
+            raise Refused(f"placeholder COLOR_0 has count {c!r}, POSITION has {count!r}")
+    obj = khr["extensions"][SPZ]
+    view = d.get("bufferViews", obj.get("bufferView") if isinstance(obj, dict) else None,
+                 SPZ)
+    if view.get("buffer", 0) != 0 or _external_buffer(d):
+        raise Refused(f"{SPZ}: only data in the GLB binary chunk is supported")
+    start, length = view.get("byteOffset", 0), view.get("byteLength", 0)
+    if not (isinstance(start, int) and isinstance(length, int) and start >= 0 and length >= 0
+            and start + length <= len(d.blob)):
+        raise Refused(f"{SPZ}: bufferView runs past the end of the buffer")
+    data = _inflate(d.blob[start:start + length], _spz_stream_bytes(3, count, 3))
+    values = decode_spz(data, count, degree)
+    return tuple(Raw(v, FLOAT, False) for v in values[:4]) + (
+        [Raw(values[4][:, k], FLOAT, False) for k in range(values[4].shape[1])],)
+
+
+def _external_buffer(d: _Doc) -> bool:
+    return d.doc.get("buffers", [{}])[0].get("uri") is not None
+
+
+def _inflate(raw: bytes, limit: int) -> bytes:
+    """The content of the one gzip member ``raw``; refused past ``limit`` bytes (inflation
+    stops there), when broken or truncated, or when non-zero bytes follow the member."""
+    inflater = zlib.decompressobj(wbits=16 + zlib.MAX_WBITS)
+    try:
+        out = inflater.decompress(bytes(raw), limit + 1)
+    except zlib.error as err:
+        raise Refused(f"{SPZ}: broken gzip stream ({err})") from None
+    if len(out) > limit:
+        raise Refused(f"{SPZ}: the stream inflates past the {limit} bytes its splats can need")
+    if not inflater.eof:
+        raise Refused(f"{SPZ}: truncated gzip stream")
+    if inflater.unused_data.strip(b"\0"):
+        raise Refused(f"{SPZ}: data follows the gzip member")
+    return out
+
+
+def decode_spz(data: bytes, count: int, degree: int) -> tuple[np.ndarray, ...]:
+    """An inflated SPZ stream of ``count`` splats of SH degree ``degree`` (what the placeholders
+    say; refused otherwise) as float32 positions (N, 3), rotations (N, 4) xyzw, scales (N, 3),
+    opacities (N, 1) and SH (N, K, 3), in glTF's frame: the spec's table in binary64, the frame
+    change, quaternions normalized, one rounding to float32."""
+    if len(data) < 16:
+        raise Refused(f"{SPZ}: the stream is shorter than its header")
+    magic, version, n, deg, frac, flags, _ = struct.unpack_from("<IIIBBBB", data, 0)
+    if magic != 0x5053474E:
+        raise Refused(f"{SPZ}: no NGSP magic")
+    if version not in (2, 3):
+        raise Refused(f"{SPZ}: SPZ version {version} (2 and 3 are allowed)")
+    if flags & 2:
+        raise Refused(f"{SPZ}: the stream carries extension records (flag bit 1)")
+    if n != count:
+        raise Refused(f"{SPZ}: the stream holds {n} splats, the placeholders {count}")
+    if deg != degree:
+        raise Refused(f"{SPZ}: the stream has SH degree {deg}, the attributes {degree}")
+    if frac > 24:
+        raise Refused(f"{SPZ}: {frac} fractional bits")
+    if len(data) != _spz_stream_bytes(version, n, deg):
+        raise Refused(f"{SPZ}: the stream holds {len(data)} bytes, its splats need "
+                      f"{_spz_stream_bytes(version, n, deg)}")
+    rest = (deg + 1) ** 2 - 1
+    rot_bytes = 4 if version >= 3 else 3
+    buf = np.frombuffer(data, np.uint8, offset=16)
+    parts, at = [], 0
+    for size in (9, 1, 3, 3, rot_bytes, 3 * rest):
+        parts.append(buf[at:at + size * n])
+        at += size * n
+    pos_b, alpha_b, colour_b, scale_b, rot_b, sh_b = parts
+    b = pos_b.reshape(n, 3, 3).astype(np.int64)
+    fixed = b[..., 0] | (b[..., 1] << 8) | (b[..., 2] << 16)
+    fixed = np.where(fixed >= 1 << 23, fixed - (1 << 24), fixed)
+    positions = fixed / float(1 << frac) * _SPZ_AXIS
+    if version >= 3:
+        q = _smallest_three(rot_b.view("<u4").astype(np.int64))
+    else:
+        xyz = rot_b.reshape(n, 3) / 127.5 - 1.0
+        q = np.concatenate([xyz, np.sqrt(np.maximum(0.0, 1.0 - (xyz * xyz).sum(1)))[:, None]],
+                           axis=1)
+    q[:, :3] *= _SPZ_AXIS
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    scales = np.exp(scale_b.reshape(n, 3) / 16.0 - 10.0)
+    opacities = (alpha_b / 255.0).reshape(n, 1)
+    sh = np.empty((n, rest + 1, 3))
+    sh[:, 0] = (colour_b.reshape(n, 3) / 255.0 - 0.5) / 0.15
+    sh[:, 1:] = (sh_b.reshape(n, rest, 3) - 128.0) / 128.0 * _SPZ_SH_SIGN[1:rest + 1, None]
+    return tuple(a.astype(np.float32) for a in (positions, q, scales, opacities, sh))
+
+
+def _smallest_three(words: np.ndarray) -> np.ndarray:
+    """Version-3 rotations: bits 30-31 the index of the largest component (rebuilt from the
+    others), then the other three in index order, the last in the lowest 10 bits, each a sign
+    (bit 9) and a magnitude m (bits 0-8) meaning m / 511 * sqrt(1/2)."""
+    largest = words >> 30
+    q = np.zeros((len(words), 4))
+    rest = words.copy()
+    for i in (3, 2, 1, 0):
+        here = largest != i
+        value = (rest & 511) / 511.0 * math.sqrt(0.5)
+        value = np.where((rest >> 9) & 1, -value, value)
+        q[:, i] = np.where(here, value, 0.0)
+        rest = np.where(here, rest >> 10, rest)
+    rows = np.arange(len(words))
+    q[rows, largest] = np.sqrt(np.maximum(0.0, 1.0 - (q * q).sum(axis=1)))
+    return q
 
 
 def _regular(tri: np.ndarray) -> np.ndarray:

@@ -32,11 +32,11 @@ from .accessors import Accessors
 from .attributes import OPACITY, POINTS, ROTATION, SCALE, TRIANGLES, sh_attribute
 from .container import DEFAULT_MAX_BYTES, GltfFormatError, as_index, gltf_error, pointer_token
 from .physics import read_physics
-from .spz import decode_primitive as decode_compressed, is_compressed
+from .spz import decode_primitive as decode_compressed, is_compressed, placeholder_count
 from .document import Document, open_document
 
 __all__ = ["ROTATION", "SCALE", "OPACITY", "sh_attribute", "POINTS", "TRIANGLES",
-           "SplatReader", "read_document", "read_gltf", "as_format_error"]
+           "sh_degree_of", "SplatReader", "read_document", "read_gltf", "as_format_error"]
 
 _SH_RE = re.compile(rf"^{KHR}:SH_DEGREE_(\d+)_COEF_(\d+)$")
 
@@ -47,7 +47,7 @@ def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
-def _sh_degree(attrs: dict[str, Any], where: str, pointer: str) -> int:
+def sh_degree_of(attrs: dict[str, Any], where: str, pointer: str) -> int:
     """Highest complete SH degree (−1 if there is no SH at all)."""
     present: set[tuple[int, int]] = set()
     for name in attrs:
@@ -317,7 +317,7 @@ class SplatReader:
         rotations = attr(ROTATION, ("VEC4",), renormalize=rot_type != FLOAT)
         scales = attr(SCALE, ("VEC3",))
         opacities = attr(OPACITY, ("SCALAR",))[:, 0]
-        degree = _sh_degree(attrs, where, apointer)
+        degree = sh_degree_of(attrs, where, apointer)
         sh: np.ndarray
         if degree >= 0:
             sh = np.empty((count, (degree + 1) ** 2, 3), np.float32)
@@ -343,34 +343,8 @@ class SplatReader:
         """The rest pose of a primitive stored through ``KHR_gaussian_splatting_compression_
         spz_2``: the placeholder accessors' counts and types checked, then the stream decoded
         (spec §SPZ-compressed rest pose)."""
-        apointer = f"{pointer}/attributes"
-        degree = _sh_degree(attrs, where, apointer)
-        expected = {"POSITION": ("VEC3",), ROTATION: ("VEC4",), SCALE: ("VEC3",),
-                    OPACITY: ("SCALAR",), "COLOR_0": ("VEC3", "VEC4")}
-        expected.update({sh_attribute(level, n): ("VEC3",) for level in range(degree + 1)
-                         for n in range(2 * level + 1)})
-        counts: dict[str, int] = {}
-        for name, gtypes in expected.items():
-            if name not in attrs:
-                continue
-            i = as_index(attrs[name], len(self.r.accessors), f"{where} {name}: accessor",
-                         f"{apointer}/{pointer_token(name)}")
-            acc = self.r.accessors.item(i)
-            if acc.get("type") not in gtypes:
-                raise gltf_error(Code.KHR_ATTRIBUTE_FORMAT, f"{where} {name} (accessor {i}) has "
-                                 f"type {acc.get('type')!r}, not {' or '.join(gtypes)}",
-                                 f"/accessors/{i}/type")
-            counts[name] = int(acc.get("count") or 0)
-        count = counts["POSITION"]
-        wrong = next((n for n, c in counts.items() if c != count), None)
-        if wrong is not None:
-            raise gltf_error(Code.SPZ_COUNT_MISMATCH, f"{where}: {wrong} has {counts[wrong]} "
-                             f"elements, POSITION has {count} (the placeholders of a compressed "
-                             f"primitive must all have the stream's count)",
-                             f"{apointer}/{pointer_token(wrong)}")
-        if degree < 0:
-            raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute "
-                             f"missing: {sh_attribute(0, 0)}", apointer)
+        degree = sh_degree_of(attrs, where, f"{pointer}/attributes")
+        count = placeholder_count(self.r, attrs, degree, where, pointer)
         return decode_compressed(self.r, khr, attrs, count, degree, color_space, where, pointer)
 
     def splat_primitive(self, m: int, p: int, name: str | None) -> SplatPrimitive:

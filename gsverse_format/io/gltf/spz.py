@@ -31,7 +31,8 @@ from .buffer import BufferBuilder
 from .container import as_index, gltf_error, pointer_token
 
 __all__ = ["SPZ_EXTENSION", "SH_SIGNS", "AXIS_SIGNS", "compress", "write_placeholders",
-           "decode_primitive", "is_compressed", "stream_limit", "decoded_bytes"]
+           "decode_primitive", "is_compressed", "stream_limit", "decoded_bytes",
+           "placeholder_count"]
 
 #: Signs taking positions and quaternion (x, y, z) between SPZ's RUB frame and glTF's (both
 #: ways: the rotation is its own inverse).
@@ -93,6 +94,47 @@ def write_placeholders(b: BufferBuilder, cloud: SplatCloud) -> dict[str, int]:
         attrs[sh_attribute(degree, k - degree * degree)] = b.placeholder(n, FLOAT, "VEC3")
     attrs["COLOR_0"] = b.placeholder(n, UNSIGNED_BYTE, "VEC4", normalized=True)
     return attrs
+
+
+def placeholder_count(r: Accessors, attrs: dict[str, Any], degree: int, where: str,
+                      pointer: str) -> int:
+    """The splat count of a compressed primitive's placeholders (``POSITION``'s), after
+    checking that each attribute the stream supplies has the type the spec gives and that
+    count (``SPZ_COUNT_MISMATCH``), and that SH degree 0 is present (``degree`` the highest
+    complete degree of the attributes)."""
+    apointer = f"{pointer}/attributes"
+    expected: dict[str, tuple[str, ...]] = {
+        "POSITION": ("VEC3",), ROTATION: ("VEC4",), SCALE: ("VEC3",), OPACITY: ("SCALAR",),
+        "COLOR_0": ("VEC3", "VEC4")}
+    expected.update({sh_attribute(level, n): ("VEC3",) for level in range(degree + 1)
+                     for n in range(2 * level + 1)})
+    counts: dict[str, int] = {}
+    for name, gtypes in expected.items():
+        if name not in attrs:
+            continue
+        i = as_index(attrs[name], len(r.accessors), f"{where} {name}: accessor",
+                     f"{apointer}/{pointer_token(name)}")
+        acc = r.accessors.item(i)
+        if acc.get("type") not in gtypes:
+            raise gltf_error(Code.KHR_ATTRIBUTE_FORMAT, f"{where} {name} (accessor {i}) has "
+                             f"type {acc.get('type')!r}, not {' or '.join(gtypes)}",
+                             f"/accessors/{i}/type")
+        count = acc.get("count")
+        counts[name] = count if isinstance(count, int) and not isinstance(count, bool) else -1
+    if "POSITION" not in counts:
+        raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute "
+                         f"missing: POSITION", apointer)
+    count = counts["POSITION"]
+    wrong = next((n for n, c in counts.items() if c != count), None)
+    if wrong is not None:
+        raise gltf_error(Code.SPZ_COUNT_MISMATCH, f"{where}: {wrong} has {counts[wrong]} "
+                         f"elements, POSITION has {count} (the placeholders of a compressed "
+                         f"primitive must all have the stream's count)",
+                         f"{apointer}/{pointer_token(wrong)}")
+    if degree < 0:
+        raise gltf_error(Code.KHR_ATTRIBUTE_MISSING, f"{where}: required {KHR} attribute "
+                         f"missing: {sh_attribute(0, 0)}", apointer)
+    return count
 
 
 def decoded_bytes(count: int, degree: int) -> int:
