@@ -7,7 +7,7 @@
 // `gsverse-conformance check SUITE RESULTS` judges it. The poses of a rig case come from the
 // asset's own animation, sampled by src/animation.js (conformance/rig-pose.js). --rotation-scale
 // dumps rotation + scale pairs instead of covariances. --fault NAME breaks the animation on
-// purpose (ANIMATION_FAULTS of src/animation.js). --json prints a JSON summary instead of a
+// purpose (ANIMATION_FAULTS of src/animation.js) or the SPZ decoding (SPZ_FAULTS of src/spz.js). --json prints a JSON summary instead of a
 // line per case.
 
 import { readFileSync } from 'node:fs';
@@ -16,7 +16,7 @@ import { fileURLToPath } from 'node:url';
 
 import { readAnchoredGlb, AnchorError } from '../src/anchor.js';
 import { readAnchorAnimation } from '../src/animation.js';
-import { expandCompressed } from '../src/spz.js';
+import { SPZ_FAULTS, expandCompressed } from '../src/spz.js';
 import { computeRest } from '../src/rest.js';
 import { remapCpu, remapCpuRotationScale } from '../src/remap-cpu.js';
 import { matchesGlob, readF32, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
@@ -38,10 +38,11 @@ export async function runCase(folder, manifest, options = {}) {
     let animation = null;
     const rig = manifest.kind === 'rig';
     try {
-        const bytes = await expandCompressed(readFileSync(join(folder, manifest.files.asset)), { name: manifest.files.asset });
+        const spzFault = SPZ_FAULTS.includes(options.fault ?? '') ? options.fault : null;
+        const bytes = await expandCompressed(readFileSync(join(folder, manifest.files.asset)), { name: manifest.files.asset, fault: spzFault });
         glb = readAnchoredGlb(bytes, { name: manifest.files.asset });
         if (rig && glb.anchored.length === 1) {
-            animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: options.fault ?? null });
+            animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: spzFault ? null : options.fault ?? null });
         }
     } catch (err) {
         if (err instanceof AnchorError) return { refused: `${err.code}: ${err.message}`, code: err.code };

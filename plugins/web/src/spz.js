@@ -186,13 +186,24 @@ export function parseSpzHeader(data, where) {
 }
 
 /**
+ * Deliberately broken decodings (testing only: the conformance suite must catch them):
+ * `spz-frame` keeps SPZ's RUB frame (no negated x and z), `spz-sh-signs` leaves the SH
+ * coefficients' signs as stored.
+ */
+export const SPZ_FAULTS = Object.freeze(['spz-frame', 'spz-sh-signs']);
+
+/**
  * The decoded splats of a whole stream (spec's decoding table): binary64, then float32, in
  * glTF's frame (x and z of positions and quaternions negated, SH coefficient k times
  * SH_SIGNS[k]), quaternions normalized. `sh` holds (degree+1)^2 RGB coefficients per splat.
  * @param {Uint8Array} data  the inflated stream, its length already checked
  * @param {{version: number, count: number, degree: number, fractionalBits: number}} h
+ * @param {string|null} [fault]  one of SPZ_FAULTS (testing only)
  */
-export function decodeSpz(data, h) {
+export function decodeSpz(data, h, fault = null) {
+    if (fault !== null && !SPZ_FAULTS.includes(fault)) throw new Error(`unknown SPZ fault '${fault}' (known: ${SPZ_FAULTS.join(', ')})`);
+    const turn = fault === 'spz-frame' ? 1 : -1;
+    const signs = fault === 'spz-sh-signs' ? SH_SIGNS.map(() => 1) : SH_SIGNS;
     const n = h.count;
     const K = (h.degree + 1) ** 2;
     const means = new Float32Array(3 * n);
@@ -202,7 +213,7 @@ export function decodeSpz(data, h) {
     const sh = new Float32Array(3 * K * n);
     let o = HEADER_BYTES;
     const step = 2 ** h.fractionalBits;
-    const axis = [-1, 1, -1];
+    const axis = [turn, 1, turn];
     for (let i = 0; i < 3 * n; ++i, o += 3) {
         let q = data[o] | (data[o + 1] << 8) | (data[o + 2] << 16);
         if (q & 0x800000) q -= 0x1000000;
@@ -232,13 +243,13 @@ export function decodeSpz(data, h) {
             o += 3;
             q[3] = Math.sqrt(Math.max(0, 1 - q[0] * q[0] - q[1] * q[1] - q[2] * q[2]));
         }
-        const x = -q[0], y = q[1], z = -q[2], w = q[3];
+        const x = turn * q[0], y = q[1], z = turn * q[2], w = q[3];
         const len = Math.sqrt(x * x + y * y + z * z + w * w);
         rotations[4 * i] = x / len; rotations[4 * i + 1] = y / len; rotations[4 * i + 2] = z / len; rotations[4 * i + 3] = w / len;
     }
     for (let i = 0; i < n; ++i) {
         for (let k = 1; k < K; ++k) {
-            for (let c = 0; c < 3; ++c) sh[3 * (K * i + k) + c] = SH_SIGNS[k] * ((data[o++] - 128) / 128);
+            for (let c = 0; c < 3; ++c) sh[3 * (K * i + k) + c] = signs[k] * ((data[o++] - 128) / 128);
         }
     }
     return { count: n, degree: h.degree, means, rotations, scales, opacity, sh };
@@ -274,8 +285,9 @@ const shName = (k) => { const l = Math.floor(Math.sqrt(k)); return `${KHR}:SH_DE
  * @param {import('./glb.js').GltfDocument} doc
  * @param {any} prim
  * @param {string} where
+ * @param {string|null} fault
  */
-async function decodePrimitive(doc, prim, where) {
+async function decodePrimitive(doc, prim, where, fault) {
     const json = doc.json;
     const khr = prim.extensions[KHR];
     const attrs = prim.attributes && typeof prim.attributes === 'object' ? prim.attributes : {};
@@ -342,7 +354,7 @@ async function decodePrimitive(doc, prim, where) {
     if (data.length !== need) {
         throw new AnchorError('SPZ_STREAM_INVALID', `${whereStream} inflates to ${data.length} bytes; ${count} splats of SH degree ${degree} in version ${h.version} take ${need}`);
     }
-    return decodeSpz(data, h);
+    return decodeSpz(data, h, fault);
 }
 
 /**
@@ -374,11 +386,13 @@ function fallbackColor(s, acc) {
  * kept. An asset without compressed primitives comes back as it is (the same bytes). Refusals
  * throw AnchorError naming the file (`options.name`).
  * @param {Uint8Array|ArrayBuffer} bytes
- * @param {{name?: string}} [options]
+ * @param {{name?: string, fault?: string|null}} [options]  fault: one of SPZ_FAULTS (testing only)
  * @returns {Promise<Uint8Array>}
  */
 export async function expandCompressed(bytes, options = {}) {
     const name = options.name || 'asset';
+    const fault = options.fault ?? null;
+    if (fault !== null && !SPZ_FAULTS.includes(fault)) throw new Error(`unknown SPZ fault '${fault}' (known: ${SPZ_FAULTS.join(', ')})`);
     const input = bytes instanceof Uint8Array ? bytes : new Uint8Array(bytes);
     try {
         const doc = parseGltf(input);
@@ -409,7 +423,7 @@ export async function expandCompressed(bytes, options = {}) {
                 const prim = prims[p];
                 const khr = prim && prim.extensions ? prim.extensions[KHR] : undefined;
                 if (!nestsSpz(khr)) continue;
-                const s = await decodePrimitive(doc, prim, `meshes[${m}].primitives[${p}]`);
+                const s = await decodePrimitive(doc, prim, `meshes[${m}].primitives[${p}]`, fault);
                 const K = (s.degree + 1) ** 2;
                 /** @type {{[name: string]: ArrayBufferView}} */
                 const values = { POSITION: s.means, [ROTATION]: s.rotations, [SCALE]: s.scales, [OPACITY]: s.opacity };
