@@ -18,6 +18,7 @@ import gsverse_format.remapping.reference as remap_module
 from gsverse_format import frames as frames_module
 from gsverse_format.conformance import cases as case_defs
 from gsverse_format.conformance import cases_rig as rig_defs
+from gsverse_format.conformance import cases_spz as spz_defs
 from gsverse_format.conformance import invalid_cases as invalid_defs
 from gsverse_format.conformance import render_export
 from gsverse_format.conformance.render_export import copy_reference_pictures
@@ -258,6 +259,7 @@ def test_cli_check_text_json_and_exit_codes(suite, tmp_path, capsys, manifests):
     assert main(["check", str(suite), str(results), "--format", "json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["summary"] == {"total": total, "passed": total, "failed": 0, "missing": 0,
+                                 "unsupported": 0,
                                  "render": n_render}
     turn = next(c for c in report["cases"] if c["id"] == "render-turn-180")
     assert turn["kind"] == "render" and len(turn["frames"]) == 3
@@ -308,7 +310,7 @@ def test_runner_flags_missing_wrong_nonfinite_and_refusals(suite, tmp_path, mani
     assert "accepted an invalid asset" in by["invalid-unknown-profile"].message
     assert by["games-shake"].status == "missing"
     assert report.summary == {"total": len(manifests), "passed": len(manifests) - 6,
-                              "failed": 5, "missing": 1, "render": 0}
+                              "failed": 5, "missing": 1, "unsupported": 0, "render": 0}
     text = format_text(report)
     assert "FAIL    games-bend" in text and "MISSING games-shake" in text
 
@@ -322,6 +324,7 @@ def test_cli_export_and_dump(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(render_export, "render_cases", lambda: renders()[:1])
     monkeypatch.setattr(rig_defs, "rig_cases", lambda: [])
     monkeypatch.setattr(rig_defs, "rig_invalid_cases", lambda: [])
+    monkeypatch.setattr(spz_defs, "spz_invalid_cases", lambda: [])
     assert main(["export", str(tmp_path / "s")]) == 0
     out = capsys.readouterr().out
     assert "1 render cases" in out and "0 rig cases" in out
@@ -1099,5 +1102,5 @@ def test_broken_derivation_fails_exactly_the_derived_cases(suite, manifests, tmp
     monkeypatch.setattr(harness, "derive_local", broken)
     report = _run(suite, tmp_path / "r", RawReferencePlugin)
     derived = _tagged(manifests, "encoding:derived")
-    assert len(derived) == 5
+    assert len(derived) == 9     # 5 uncompressed, 4 SPZ-compressed
     assert _failed(report) == derived

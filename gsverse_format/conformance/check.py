@@ -304,7 +304,7 @@ def _check_uncompressed(manifest: dict, folder: Path, ref, rest_cov: np.ndarray)
                            tol["covariance"]["floor"] * np.linalg.norm(rest_cov, axis=(1, 2)))
         out.append(_worst("covariance (uncompressed)", stem, p, err,
                           bound[:, 1] + _pose_tolerance(tol["covariance"], "rtol", p) * scale
-                          + np.finfo(np.float64).tiny))
+                          + np.finfo(np.float64).tiny))   # tiny: never a zero divisor
     return out
 
 

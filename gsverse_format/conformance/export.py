@@ -40,7 +40,7 @@ from ..remapping.reference import face_matrices, prepare_rest, remap
 from . import cases as case_defs
 from . import cases_rig as rig_defs
 from . import invalid_cases as invalid_defs
-from .cases_spz import spz_invalid_cases
+from . import cases_spz as spz_defs
 from .spz_export import uncompressed_expectation
 from .harness import cov6, read_asset
 from .glb import pack_glb, patch_accessor, unpack_glb
@@ -551,7 +551,7 @@ def export_suite(directory: str | os.PathLike) -> dict:
         scratch = tmp / ".bases"
         scratch.mkdir()
         for invalid in (invalid_defs.invalid_cases() + rig_defs.rig_invalid_cases()
-                        + spz_invalid_cases()):
+                        + spz_defs.spz_invalid_cases()):
             manifest = _export_invalid(invalid, tmp / "cases" / invalid.id, cache, scratch)
             _write(tmp / "cases" / invalid.id / "case.json",
                    json.dumps(manifest, indent=1).encode("utf-8"))

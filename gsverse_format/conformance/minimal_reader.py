@@ -22,7 +22,10 @@ the order it does it, so that it can be ported line by line to C#, C++ or GDScri
 spec §SPZ-compressed rest pose) is inflated with the standard library's zlib, never past the
 bytes the placeholders' splat count needs, decoded per the spec's table in binary64, turned
 from SPZ's frame to glTF's and rounded once to float32 (:func:`decode_spz`); it is then
-returned as FLOAT accessors, and derived anchors come from those float32 values.
+returned as FLOAT accessors, and derived anchors come from those float32 values. (The work is
+bounded by the placeholders' count N: 16 + 65 N bytes at most. A plugin reading untrusted files
+also bounds N against the stream's size before allocating, as the package's reader does:
+``MAX_SPZ_AMPLIFICATION`` of README §Limits.)
 
 Everything is returned raw (stored dtype, component type, normalized flag), so that an
 implementation under test can do its own dequantization. Only GLB files with their data in the
