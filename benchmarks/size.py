@@ -30,8 +30,8 @@ explicit, anchored compact, anchored compact with the rest pose SPZ-compressed
 (``gsverse-convert --compress spz``), plain KHR SPZ-compressed, and PlayCanvas
 splat-transform's ``.spz`` (version 4, its default) and ``.sog`` of a PLY of the same splats
 in the same order (``tests/splat_transform``; ``.sog`` on the CPU with one k-means iteration
-for the SH palette, and for SH above 0 only up to :data:`SOG_SH_SPLATS` splats unless
-``--sog-all``). Its columns give the
+for the SH palette, and for SH above 0 only up to :data:`SOG_SH_SPLATS` splats, or
+``--sog-sh-splats``). Its columns give the
 ratio compact+SPZ / ``.spz`` against the goal, the share of the anchor mesh and
 ``faceCounts`` in the compact+SPZ file, and two checks of that file read back: the decoded
 rest pose against the input in units of the bounds spec §SPZ-compressed rest pose states
@@ -56,10 +56,10 @@ GOALS = {(0, False): 35.0, (3, False): 15.0, (0, True): 15.0, (3, True): 5.0}
 SPZ_GOALS = {0: 1.3, 3: 1.15}
 #: The delivery table's sizes: (splats, faces)
 DELIVERY_SIZES = ((200_000, 20_000), (1_000_000, 100_000))
-#: splat-transform's .sog of SH above 0 is run up to this many splats unless ``--sog-all``: its
-#: SH palette's k-means on the CPU (no GPU here) took 15 min for 200k SH3 splats and grows
+#: splat-transform's .sog of SH above 0 is run up to this many splats (``--sog-sh-splats``):
+#: its SH palette's k-means on the CPU (no GPU here) took 15 min for 200k SH3 splats and grows
 #: faster than the count.
-SOG_SH_SPLATS = 250_000
+SOG_SH_SPLATS = 50_000
 
 
 def make_asset(n: int, faces: int, seed: int = 7):
@@ -267,7 +267,7 @@ def _splat_transform(ply: Path, out: Path) -> int | str:
     return out.stat().st_size
 
 
-def delivery(sizes, log=lambda msg: None, sog_all: bool = False) -> list[dict]:
+def delivery(sizes, log=lambda msg: None, sog_sh_splats: int = SOG_SH_SPLATS) -> list[dict]:
     """The delivery table's rows: per size and SH degree, the bytes of each layout."""
     from gsverse_format.io.gltf import write_gltf
     from gsverse_format.io.ply import write_splat_ply
@@ -302,8 +302,8 @@ def delivery(sizes, log=lambda msg: None, sog_all: bool = False) -> list[dict]:
                 ply = folder / "splats.ply"
                 write_splat_ply(c, ply)
                 for key, suffix in (("st_spz", ".spz"), ("st_sog", ".sog")):
-                    if key == "st_sog" and degree and n > SOG_SH_SPLATS and not sog_all:
-                        row[key] = "not run: CPU SH k-means; --sog-all"
+                    if key == "st_sog" and degree and n > sog_sh_splats:
+                        row[key] = "not run: CPU SH k-means; --sog-sh-splats"
                         continue
                     t0 = time.perf_counter()
                     row[key] = _splat_transform(ply, folder / f"st{suffix}")
@@ -353,9 +353,10 @@ def main(argv: list[str] | None = None) -> int:
     size = p.add_mutually_exclusive_group()
     size.add_argument("--quick", action="store_true", help="100k splats on about 6k faces")
     size.add_argument("--large", action="store_true", help="1M splats on about 100k faces")
-    p.add_argument("--sog-all", action="store_true",
-                   help=f"run splat-transform's .sog for SH above 0 beyond {SOG_SH_SPLATS:,} "
-                        "splats too (its SH k-means on the CPU takes far longer than the rest)")
+    p.add_argument("--sog-sh-splats", type=int, default=SOG_SH_SPLATS, metavar="N",
+                   help=f"run splat-transform's .sog for SH above 0 up to N splats (default "
+                        f"{SOG_SH_SPLATS:,}: its SH k-means on the CPU takes far longer than "
+                        "everything else)")
     p.add_argument("-v", "--verbose", action="store_true", help="progress lines on stderr")
     args = p.parse_args(argv)
     n, faces = ((100_000, 6_000) if args.quick else (1_000_000, 100_000) if args.large
@@ -364,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
         else (lambda msg: None)
     res = run(n, faces, log=log)
     sizes = ((n, faces),) if args.quick or args.splats else DELIVERY_SIZES
-    res["delivery"] = delivery(sizes, log=log, sog_all=args.sog_all)
+    res["delivery"] = delivery(sizes, log=log, sog_sh_splats=args.sog_sh_splats)
     print(markdown(res))
     return 0
 

@@ -1,7 +1,8 @@
 // The JS target of the fuzz harness (fuzz/js_worker.py starts it): one long-lived Node process
 // that reads many GLB / glTF files with the web plugin's reader (plugins/web/src), as an
-// application would: readAnchoredGlb, then per anchored primitive computeRest, remapCpu on the
-// rest vertices and readAnchorAnimation (its first animation sampled), then readPhysics.
+// application would: expandCompressed (an SPZ-compressed rest pose decoded), readAnchoredGlb,
+// then per anchored primitive computeRest, remapCpu on the rest vertices and
+// readAnchorAnimation (its first animation sampled), then readPhysics.
 //
 // Protocol (the USD worker's): one JSON request per line on stdin, {"path", "targets"}; one
 // JSON line per target on stdout, {"target", "outcome", "detail", "codes"}. Outcomes: ok;
@@ -10,12 +11,12 @@
 import { readFileSync } from 'node:fs';
 import { createInterface } from 'node:readline';
 import {
-    AnchorError, computeRest, readAnchorAnimation, readAnchoredGlb, readPhysics, remapCpu,
+    AnchorError, computeRest, expandCompressed, readAnchorAnimation, readAnchoredGlb, readPhysics, remapCpu,
 } from '../plugins/web/src/index.js';
 
 /** @param {string} path */
-function readAll(path) {
-    const bytes = readFileSync(path);
+async function readAll(path) {
+    const bytes = await expandCompressed(readFileSync(path), { name: 'input.glb' });
     const { anchored } = readAnchoredGlb(bytes, { name: 'input.glb' });
     for (const prim of anchored) {
         const rest = computeRest(prim);
@@ -39,7 +40,7 @@ for await (const line of lines) {
     for (const target of request.targets) {
         let reply;
         try {
-            readAll(request.path);
+            await readAll(request.path);
             reply = { target, outcome: 'ok', detail: '', codes: [] };
         } catch (err) {
             reply = err instanceof AnchorError

@@ -57,6 +57,41 @@ def test_the_shipped_demo_asset_is_what_the_converter_writes(tmp_path):
     np.testing.assert_array_equal(a.anchoring.anchors.face_index, b.anchoring.anchors.face_index, err_msg=hint)
 
 
+def test_the_shipped_compressed_demo_asset_is_what_the_converter_writes(tmp_path):
+    """examples/web/capsule-spz.glb (the demo's "capsule (SPZ)" button) is the capsule example
+    converted with --compress spz by today's converter: the same stream, hence the same decoded
+    splats, anchor mesh and derived anchors."""
+    import numpy as np
+
+    import gsverse_format as gv
+    from gsverse_format.io.gltf.container import parse_glb
+    from gsverse_format.vocabulary import KHR, SPZ_EXTENSION
+
+    shipped_path = EXAMPLE.with_name("capsule-spz.glb")
+    out = tmp_path / "capsule-spz.glb"
+    gv.convert(ROOT / "examples/capsule/splats.ply", out, mesh=ROOT / "examples/capsule/mesh.obj",
+               compress="spz")
+    hint = ("examples/web/capsule-spz.glb is stale: regenerate it with gsverse-convert -w "
+            "examples/capsule/splats.ply examples/web/capsule-spz.glb --mesh "
+            "examples/capsule/mesh.obj --compress spz")
+
+    def stream(path: Path) -> bytes:
+        text, bin_chunk = parse_glb(path.read_bytes())
+        doc = json.loads(text)
+        view = doc["bufferViews"][doc["meshes"][0]["primitives"][0]["extensions"][KHR][
+            "extensions"][SPZ_EXTENSION]["bufferView"]]
+        start = view.get("byteOffset", 0)
+        return bytes(bin_chunk[start:start + view["byteLength"]])
+
+    assert stream(out) == stream(shipped_path), hint
+    fresh, shipped = gv.read(out), gv.read(shipped_path)
+    a, b = fresh.primitives[0], shipped.primitives[0]
+    for field in ("means", "rotations", "scales", "opacities", "sh"):
+        np.testing.assert_array_equal(getattr(a.splats, field), getattr(b.splats, field), err_msg=hint)
+    np.testing.assert_array_equal(a.anchoring.mesh.vertices, b.anchoring.mesh.vertices, err_msg=hint)
+    np.testing.assert_array_equal(a.anchoring.anchors.face_index, b.anchoring.anchors.face_index, err_msg=hint)
+
+
 def test_only_the_engine_adapters_of_the_demo_import_an_engine():
     """examples/web runs on PlayCanvas or three.js + Spark behind engine-playcanvas.js and
     engine-three.js: no other module of the page imports an engine, a plugin's engine entry point

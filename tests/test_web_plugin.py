@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -49,7 +50,8 @@ def test_node_unit_tests_pass():
     scale = time_scale()
     proc = subprocess.run(["npm", "test", "--silent"], cwd=WEB, capture_output=True, text=True,
                           timeout=900 * scale, check=False,
-                          env=dict(os.environ, GSVERSE_TIME_SCALE=f"{scale:.2f}"))
+                          env=dict(os.environ, GSVERSE_TIME_SCALE=f"{scale:.2f}",
+                                   GSVERSE_PYTHON=sys.executable))   # test/spz_fixtures.py
     assert proc.returncode == 0, _explain(proc)
     assert "# fail 0" in proc.stdout, _explain(proc)
     assert "# skipped 0" in proc.stdout, _explain(proc)
@@ -158,6 +160,23 @@ def test_broken_render_variants_fail_their_cases(suite, tmp_path, fault):
     failed = _failed(report)
     assert must <= failed, (fault, sorted(failed), [(c.id, c.message) for c in report.cases])
     assert failed <= must | may, (fault, sorted(failed - must - may))
+
+
+@pytest.mark.parametrize("fault", ["spz-frame", "spz-sh-signs"])
+def test_broken_spz_decoding_fails_exactly_the_cases_it_should(suite, manifests, tmp_path, fault):
+    """A deliberately broken SPZ decoder (src/spz.js SPZ_FAULTS, shared by both engines and the
+    CPU path): without the frame change every encoding:spz remap case fails, without the SH
+    signs those with SH above degree 0; the refusals still pass."""
+    require_web_tools()
+    results = tmp_path / "results"
+    proc = run_node(["conformance/run-node.mjs", suite, results, "--cases", "*spz*", "--fault", fault])
+    assert proc.returncode == 0, _explain(proc)
+    spz = _tagged(manifests, "encoding:spz")
+    remaps = {cid for cid in spz if manifests[cid]["kind"] == "remap"}
+    must = remaps if fault == "spz-frame" else {cid for cid in remaps if manifests[cid]["sh_degree"] > 0}
+    report = check_results(suite, results, level="numbers")
+    failed = {c.id for c in report.cases if c.status == "fail"}
+    assert must and failed == must, (fault, sorted(failed ^ must))
 
 
 def test_demo_physics_in_node():

@@ -377,7 +377,7 @@ function bindUi() {
         $('pause').textContent = paused ? 'resume' : 'pause';
     });
     $('error').addEventListener('click', hideError);
-    for (const [id, file] of [['open-capsule', 'capsule.glb'], ['open-scene', 'scene.glb']]) {
+    for (const [id, file] of [['open-capsule', 'capsule.glb'], ['open-capsule-spz', 'capsule-spz.glb'], ['open-scene', 'scene.glb']]) {
         $(id).addEventListener('click', () => { open(`/${file}`, file).catch(() => {}); });
     }
     bindAnimationUi(player, animUi(), () => { dirty = true; });

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import gzip
 import struct
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -49,10 +49,11 @@ def _poses(mesh) -> list[Pose]:
 def spz_cases() -> list[RemapCase]:
     """The compressed remap cases, in suite order."""
     out = []
-    for law, degree, shape in (("affine", 1, {}), ("rigid", 3, {}),
-                               ("affine", 0, {"rings": 3, "segments": 6, "radius": 0.6,
-                                              "height": 2.5}),
-                               ("rigid", 2, {"rings": 4, "segments": 5, "radius": 0.15})):
+    shapes: tuple[tuple[str, int, dict[str, Any]], ...] = (
+        ("affine", 1, {}), ("rigid", 3, {}),
+        ("affine", 0, {"rings": 3, "segments": 6, "radius": 0.6, "height": 2.5}),
+        ("rigid", 2, {"rings": 4, "segments": 5, "radius": 0.15}))
+    for law, degree, shape in shapes:
         cid = f"local-{law}-spz-sh{degree}"
         rng = case_rng(cid)
         mesh = tube_mesh(**shape)

@@ -390,16 +390,15 @@ def _read_spz(d: _Doc, khr: dict, attrs: dict) -> tuple:
     if any(a.startswith(f"{KHR}:SH_DEGREE_") and a not in shapes for a in attrs):
         raise Refused("the SH attributes of the compressed primitive are not exactly degrees "
                       f"0 to {degree}")
-    count = None
+    count = -1
     for name, gtype in shapes.items():
         acc = d.get("accessors", attrs[name] if name in attrs else None, f"placeholder {name}")
         if acc.get("type") != gtype or acc.get("componentType") != FLOAT:
             raise Refused(f"placeholder {name} must be FLOAT {gtype}")
         c = acc.get("count")
-        if count is None:
-            count = c
-        if not isinstance(c, int) or isinstance(c, bool) or c < 0 or c != count:
+        if not isinstance(c, int) or isinstance(c, bool) or c < 0 or count not in (-1, c):
             raise Refused(f"placeholder {name} has count {c!r}, POSITION has {count!r}")
+        count = c
     if "COLOR_0" in attrs:      # the fallback colour: any type glTF allows, the same count
         c = d.get("accessors", attrs["COLOR_0"], "placeholder COLOR_0").get("count")
         if c != count:

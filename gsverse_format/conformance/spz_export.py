@@ -61,7 +61,10 @@ def uncompressed_expectation(initial: SplatAsset, decoded: SplatPrimitive, asset
         plain = read_asset(str(scratch)).primitives[0]
     finally:
         scratch.unlink()
-    anchoring, anchors = plain.anchoring, plain.anchoring.anchors
+    anchoring = plain.anchoring
+    if anchoring is None or decoded.anchoring is None:
+        raise RuntimeError(f"{asset_path}: no anchoring read back")
+    anchors = anchoring.anchors
     if not np.array_equal(anchors.face_index, decoded.anchoring.anchors.face_index):
         raise RuntimeError(f"{asset_path}: the compressed and uncompressed splats differ in "
                            f"order or faces")

@@ -15,6 +15,8 @@
 //   - twist(+60 / -60) about the view axis: the front end turns, so the red-to-cyan colour axis
 //     of the splats turns with the twist's sign by 20..85 degrees, nothing blows up;
 //   - twist(90) about the long axis: silhouette kept, the held end unchanged, the turned end changed;
+//   - the SPZ-compressed capsule (capsule-spz.glb): loads, the rest silhouette and colours of
+//     the uncompressed one, a 1.5x pull grows its rendered extent 1.3..1.7x;
 //   - a .ply dropped on the page says to convert it with gsverse-convert first;
 //   - a refused asset (an anchor mesh reference that resolves to nothing) shows the AnchorError
 //     on the page and leaves the loaded asset in place.
@@ -164,6 +166,40 @@ try {
         `${(s3.x.size / s0.x.size).toFixed(3)}x, ${(s3.y.size / s0.y.size).toFixed(3)}y`);
     check('twist about the long axis: turned end changed, held end kept', bottom < 0.5 * top,
         `mean |difference| from rest per band, top to bottom: ${bands.map((v) => v.toFixed(1)).join(', ')}`);
+
+    // the same capsule with its rest pose SPZ-compressed (capsule-spz.glb): it loads through the
+    // plugin's expandCompressed, looks like the uncompressed one and deforms
+    const spz = await page.evaluate(async () => {
+        const demo = /** @type {any} */ (window).gsverseDemo;
+        const bytes = new Uint8Array(await (await fetch('/capsule-spz.glb')).arrayBuffer());
+        try {
+            await demo.load(bytes, 'capsule-spz.glb');
+            return { loaded: true, extent: demo.extent() };
+        } catch (e) {
+            return { loaded: false, error: String(/** @type {any} */ (e).message || e) };
+        }
+    });
+    check('SPZ-compressed capsule loads', spz.loaded, spz.loaded ? `extent ${JSON.stringify(spz.extent.map((/** @type {number} */ v) => +v.toFixed(3)))}` : spz.error);
+    if (spz.loaded) {
+        const restSpz = await shot('spz-rest');
+        const c0 = silhouette(restSpz);
+        check('SPZ capsule at rest: the silhouette of the uncompressed one', Math.abs(c0.y.size - s0.y.size) <= 3 && Math.abs(c0.x.size - s0.x.size) <= 3 && c0.fraction > 0.02,
+            `${c0.x.size}x${c0.y.size} px (uncompressed ${s0.x.size}x${s0.y.size})`);
+        // colours as well: the quantization moves a pixel by about 1 of 255 on average (measured
+        // 0.5 to 0.8), a wrong frame or SH sign by about as much as the 90-degree twist (10 to 12)
+        const dSpz = meanDifference(rest, restSpz, { x0: s0.x.lo, x1: s0.x.hi, y0: s0.y.lo, y1: s0.y.hi });
+        check('SPZ capsule at rest: the colours of the uncompressed one', dSpz < 3, `mean |difference| ${dSpz.toFixed(2)} of 255`);
+        await call('pull', 'y', 1.5);
+        const c1 = silhouette(await shot('spz-stretch'));
+        const cy = c1.y.size / c0.y.size;
+        check('SPZ capsule: pull 1.5x along y grows the rendered extent', within(cy, 1.3, 1.7) && !c1.touchesBorder,
+            `y ${c0.y.size} -> ${c1.y.size} px = ${cy.toFixed(3)}x`);
+        // back to the uncompressed capsule for what follows
+        await page.evaluate(async () => {
+            const demo = /** @type {any} */ (window).gsverseDemo;
+            await demo.load(new Uint8Array(await (await fetch('/capsule.glb')).arrayBuffer()), 'capsule.glb');
+        });
+    }
 
     // a refused asset
     await call('reset');

@@ -1,12 +1,13 @@
 #!/usr/bin/env node
 // The conformance harness of the CPU path, in Node:
 //   node conformance/run-node.mjs SUITE RESULTS [--json] [--cases GLOB] [--rotation-scale] [--fault NAME]
-// imports every case of SUITE/suite.json with readAnchoredGlb, remaps every pose with
+// imports every case of SUITE/suite.json with readAnchoredGlb (SPZ-compressed rest poses
+// expanded first by expandCompressed), remaps every pose with
 // remapCpu and writes the dump layout of spec/conformance.md into RESULTS; then
 // `gsverse-conformance check SUITE RESULTS` judges it. The poses of a rig case come from the
 // asset's own animation, sampled by src/animation.js (conformance/rig-pose.js). --rotation-scale
 // dumps rotation + scale pairs instead of covariances. --fault NAME breaks the animation on
-// purpose (ANIMATION_FAULTS of src/animation.js). --json prints a JSON summary instead of a
+// purpose (ANIMATION_FAULTS of src/animation.js) or the SPZ decoding (SPZ_FAULTS of src/spz.js). --json prints a JSON summary instead of a
 // line per case.
 
 import { readFileSync } from 'node:fs';
@@ -15,6 +16,7 @@ import { fileURLToPath } from 'node:url';
 
 import { readAnchoredGlb, AnchorError } from '../src/anchor.js';
 import { readAnchorAnimation } from '../src/animation.js';
+import { SPZ_FAULTS, expandCompressed } from '../src/spz.js';
 import { computeRest } from '../src/rest.js';
 import { remapCpu, remapCpuRotationScale } from '../src/remap-cpu.js';
 import { matchesGlob, readF32, readSuite, writeCaseResults, writeHarness } from './dump.mjs';
@@ -28,18 +30,19 @@ import { rigPose } from './rig-pose.js';
  * @param {string} folder  the case folder
  * @param {any} manifest
  * @param {{rotationScale?: boolean, fault?: string|null}} [options]
- * @returns {CaseResults & {code?: string}}
+ * @returns {Promise<CaseResults & {code?: string}>}
  */
-export function runCase(folder, manifest, options = {}) {
+export async function runCase(folder, manifest, options = {}) {
     let glb;
     /** @type {import('../src/animation.js').AnchorAnimation|null} */
     let animation = null;
     const rig = manifest.kind === 'rig';
     try {
-        const bytes = readFileSync(join(folder, manifest.files.asset));
+        const spzFault = SPZ_FAULTS.includes(options.fault ?? '') ? options.fault : null;
+        const bytes = await expandCompressed(readFileSync(join(folder, manifest.files.asset)), { name: manifest.files.asset, fault: spzFault });
         glb = readAnchoredGlb(bytes, { name: manifest.files.asset });
         if (rig && glb.anchored.length === 1) {
-            animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: options.fault ?? null });
+            animation = readAnchorAnimation(bytes, glb.anchored[0], { name: manifest.files.asset, fault: spzFault ? null : options.fault ?? null });
         }
     } catch (err) {
         if (err instanceof AnchorError) return { refused: `${err.code}: ${err.message}`, code: err.code };
@@ -80,9 +83,9 @@ export function runCase(folder, manifest, options = {}) {
  * @param {string} suiteDir
  * @param {string} resultsDir
  * @param {{rotationScale?: boolean, fault?: string|null, cases?: string, log?: (line: string) => void}} [options]
- * @returns {{id: string, kind: string, outcome: string, code?: string, expected?: string}[]}
+ * @returns {Promise<{id: string, kind: string, outcome: string, code?: string, expected?: string}[]>}
  */
-export function runSuite(suiteDir, resultsDir, options = {}) {
+export async function runSuite(suiteDir, resultsDir, options = {}) {
     const pkg = JSON.parse(readFileSync(new URL('../package.json', import.meta.url), 'utf8'));
     writeHarness(resultsDir, {
         name: '@gsverse/web CPU path (remap-cpu.js)',
@@ -100,7 +103,7 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
     for (const { folder, manifest } of readSuite(suiteDir)) {
         if (!matchesGlob(manifest.id, options.cases)) continue;
         const t0 = performance.now();
-        const results = runCase(folder, manifest, options);
+        const results = await runCase(folder, manifest, options);
         writeCaseResults(resultsDir, manifest.id, results);
         const outcome = results.refused !== undefined ? 'refused' : results.error !== undefined ? 'error' : 'remapped';
         const entry = { id: manifest.id, kind: manifest.kind, outcome, code: results.code, expected: manifest.validator_code };
@@ -111,7 +114,7 @@ export function runSuite(suiteDir, resultsDir, options = {}) {
     return summary;
 }
 
-function main() {
+async function main() {
     const args = process.argv.slice(2);
     const flags = new Set(args.filter((a) => a.startsWith('--') && a !== '--cases' && a !== '--fault'));
     const casesAt = args.indexOf('--cases');
@@ -125,7 +128,7 @@ function main() {
     }
     const [suiteDir, resultsDir] = positional.map((p) => resolve(p));
     const json = flags.has('--json');
-    const summary = runSuite(suiteDir, resultsDir, {
+    const summary = await runSuite(suiteDir, resultsDir, {
         rotationScale: flags.has('--rotation-scale'),
         fault: fault || null,
         cases,

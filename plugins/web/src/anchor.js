@@ -21,6 +21,8 @@ import { EPS_DEGENERATE } from './rest.js';
 
 export const KHR = 'KHR_gaussian_splatting';
 export const EXTENSION = 'GSVERSE_gaussian_splatting_mesh_anchor';
+/** The SPZ-compressed rest pose (spec §SPZ-compressed rest pose; decoded by spz.js). */
+export const SPZ_EXTENSION = 'KHR_gaussian_splatting_compression_spz_2';
 const POINTS = 0;
 const TRIANGLES = 4;
 
@@ -121,7 +123,7 @@ function normalizeQuaternions(q) {
  * @param {{[name: string]: unknown}} attrs
  * @param {string} where
  */
-function shDegree(attrs, where) {
+export function shDegree(attrs, where) {
     const re = new RegExp(`^${KHR}:SH_DEGREE_(\\d+)_COEF_(\\d+)$`);
     const present = new Set();
     for (const name of Object.keys(attrs)) {
@@ -514,6 +516,9 @@ export function readAnchoredGlb(bytes, options = {}) {
                 if (khr === undefined || khr === null) return;
                 if (typeof khr !== 'object') throw new AnchorError('KHR_PROPERTY_INVALID', `meshes[${m}].primitives[${p}]: ${KHR} extension must be an object`);
                 const nested = khr.extensions;
+                if (nested && typeof nested === 'object' && nested[SPZ_EXTENSION] !== undefined) {
+                    throw new AnchorError('UNSUPPORTED_REQUIRED_EXTENSION', `meshes[${m}].primitives[${p}] stores its rest pose through ${SPZ_EXTENSION}; expand the asset first (expandCompressed, asynchronous) or load it with an engine's loadAnchoredAsset`);
+                }
                 const isAnchored = nested && typeof nested === 'object' && nested[EXTENSION] !== undefined;
                 const mode = prim.mode === undefined ? TRIANGLES : prim.mode;
                 if (isAnchored) {

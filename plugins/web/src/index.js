@@ -3,6 +3,10 @@
 // '@gsverse/web/three'.
 
 export { AnchorError, readAnchoredGlb, ANCHOR_ACCESSORS, EXTENSION, KHR } from './anchor.js';
+export {
+    SPZ_EXTENSION, SH_SIGNS as SPZ_SH_SIGNS, MAX_SPZ_AMPLIFICATION, expandCompressed, hasCompressedPrimitives, inflateBounded as inflateSpzBounded,
+    parseSpzHeader, decodeSpz, streamLimit as spzStreamLimit,
+} from './spz.js';
 export { GltfError, parseGltf, dequantize, globalMatrices, MAX_DATA_URI_BYTES, MAX_GLTF_ARRAY_ITEMS, MAX_READ_AMPLIFICATION, READ_AMPLIFICATION_SLACK } from './glb.js';
 export { computeRest, triangleFrame, perp, EPS_DEGENERATE, GAMES_EPS } from './rest.js';
 export { expandFaceCounts, deriveLocalAnchors } from './compact.js';

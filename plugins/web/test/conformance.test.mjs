@@ -42,12 +42,12 @@ function writeSuite(root) {
     }));
 }
 
-test('run-node writes the dump layout for a remap case and refused for an invalid one', () => {
+test('run-node writes the dump layout for a remap case and refused for an invalid one', async () => {
     const root = mkdtempSync(join(tmpdir(), 'gsverse-web-suite-'));
     try {
         writeSuite(join(root, 'suite'));
         const results = join(root, 'results');
-        const summary = runSuite(join(root, 'suite'), results);
+        const summary = await runSuite(join(root, 'suite'), results);
         assert.deepEqual(summary.map((s) => s.outcome), ['remapped', 'refused']);
         assert.equal(summary[1].code, 'ROTATION_NOT_UNIT');
         const harness = JSON.parse(readFileSync(join(results, 'harness.json'), 'utf8'));
@@ -70,7 +70,7 @@ test('run-node writes the dump layout for a remap case and refused for an invali
         assert.match(refused, /ROTATION_NOT_UNIT/);
         // --rotation-scale dumps rotation + scale pairs instead of covariances
         const rs = join(root, 'results-rs');
-        runSuite(join(root, 'suite'), rs, { rotationScale: true, cases: 'example-*' });
+        await runSuite(join(root, 'suite'), rs, { rotationScale: true, cases: 'example-*' });
         assert.ok(existsSync(join(rs, 'example-1', 'pose_001.rotation.f32')));
         assert.ok(!existsSync(join(rs, 'example-1', 'pose_001.cov.f32')));
         assert.ok(!existsSync(join(rs, 'invalid-zero-rotation')));

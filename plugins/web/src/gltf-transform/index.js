@@ -1,5 +1,6 @@
 // glTF-Transform extensions for mesh-anchored Gaussian splats: KHR_gaussian_splatting and the
-// GSVERSE_gaussian_splatting_mesh_anchor nested in it. Register both (`gsverseExtensions`) with
+// GSVERSE_gaussian_splatting_mesh_anchor and KHR_gaussian_splatting_compression_spz_2 nested in
+// it. Register them together (`gsverseExtensions`) with
 // an I/O class, or with the gltf-transform CLI through gltf-transform.config.mjs (next to
 // package.json). The classes import @gltf-transform/core: use the same copy as the I/O class.
 //
@@ -10,11 +11,13 @@
 
 import { GaussianSplatting, KHRGaussianSplatting, KHR_GAUSSIAN_SPLATTING, GSVERSE_MESH_ANCHOR } from './khr-gaussian-splatting.js';
 import { GSVERSEMeshAnchor, MeshAnchor, MeshAnchorError, PROFILE_ACCESSORS } from './mesh-anchor.js';
+import { KHRGaussianSplattingCompressionSpz, SpzCompression, SpzCompressionError, SPZ_EXTENSION } from './spz-compression.js';
 
 export {
     GaussianSplatting, KHRGaussianSplatting, KHR_GAUSSIAN_SPLATTING, GSVERSE_MESH_ANCHOR,
     GSVERSEMeshAnchor, MeshAnchor, MeshAnchorError, PROFILE_ACCESSORS,
+    KHRGaussianSplattingCompressionSpz, SpzCompression, SpzCompressionError, SPZ_EXTENSION,
 };
 
-/** Both extension classes, to register together. */
-export const gsverseExtensions = [KHRGaussianSplatting, GSVERSEMeshAnchor];
+/** The extension classes, to register together. */
+export const gsverseExtensions = [KHRGaussianSplatting, GSVERSEMeshAnchor, KHRGaussianSplattingCompressionSpz];

@@ -116,8 +116,7 @@ export class KHRGaussianSplatting extends Extension {
      */
     read(context) {
         const logger = this.document.getLogger();
-        const anchorRegistered = this.document.getRoot().listExtensionsUsed()
-            .some((ext) => ext.extensionName === GSVERSE_MESH_ANCHOR);
+        const registered = new Set(this.document.getRoot().listExtensionsUsed().map((ext) => ext.extensionName));
         (context.jsonDoc.json.meshes || []).forEach((meshDef, m) => {
             (meshDef.primitives || []).forEach((primDef, p) => {
                 const def = /** @type {Record<string, any> | undefined} */ (primDef.extensions?.[KHR_GAUSSIAN_SPLATTING]);
@@ -138,7 +137,7 @@ export class KHRGaussianSplatting extends Extension {
                     .setOtherProperties(other);
                 if (def.extras && typeof def.extras === 'object') splat.setExtras(def.extras);
                 for (const name of Object.keys(def.extensions || {})) {
-                    if (name === GSVERSE_MESH_ANCHOR && anchorRegistered) continue;
+                    if (registered.has(name)) continue;   // GSVERSE_mesh_anchor, the SPZ compression: their own classes
                     logger.warn(`${KHR_GAUSSIAN_SPLATTING}: meshes[${m}].primitives[${p}]: nested extension "${name}" `
                         + 'is not registered and will not be written.');
                 }

@@ -318,7 +318,8 @@ function readState(anchor, prim) {
     const splat = new Map();
     for (const semantic of SPLAT_ATTRIBUTES) {
         const accessor = prim.getAttribute(semantic);
-        if (accessor) splat.set(semantic, values(accessor));
+        // a placeholder without data (an SPZ-compressed rest pose): spz-compression.js checks it
+        if (accessor && accessor.getArray()) splat.set(semantic, values(accessor));
     }
     return {
         anchorPositions: values(position), anchorIndices: indexValues(anchorPrim.getIndices()),

@@ -48,6 +48,7 @@ import {
 import { AnchorError, readAnchoredGlb } from '../anchor.js';
 import { readAnchorAnimation } from '../animation.js';
 import { parseGltf } from '../glb.js';
+import { expandCompressed } from '../spz.js';
 import { computeRest } from '../rest.js';
 import { remapMeansInto } from '../remap-cpu.js';
 import { centersChanged, checkComponent, checkEngine, checkResource, meshSplatAssets } from './engine.js';
@@ -519,8 +520,9 @@ function loadContainer(app, bytes, name) {
 }
 
 /**
- * Load a GLB with anchored splats: the engine's container loader for the rest pose, our
- * reader for the anchors (refusals throw AnchorError), anchor data uploaded once, the remap
+ * Load a GLB with anchored splats: an SPZ-compressed rest pose decoded first (expandCompressed),
+ * the engine's container loader for the rest pose, our reader for the anchors (refusals throw
+ * AnchorError), anchor data uploaded once, the remap
  * installed as the instances' work-buffer modifier.
  * @param {AppBase} app
  * @param {string|Uint8Array|ArrayBuffer} source  URL or GLB bytes
@@ -541,6 +543,7 @@ export async function loadAnchoredAsset(app, source, options = {}) {
         bytes = source instanceof Uint8Array ? source : new Uint8Array(source);
     }
     name = name || 'asset.glb';
+    bytes = await expandCompressed(bytes, { name });   // SPZ-compressed rest poses decoded (refusals throw here)
     const { anchored: prims, json } = readAnchoredGlb(bytes, { name });   // refusals throw here
     const doc = parseGltf(bytes);
     const animations = prims.map((prim) => readAnchorAnimation(doc, prim, { name }));   // and here

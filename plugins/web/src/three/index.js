@@ -39,6 +39,7 @@ import { PackedSplats, SplatMesh } from '@sparkjsdev/spark';
 import { AnchorError, SH_C0, readAnchoredGlb, readRestPose } from '../anchor.js';
 import { readAnchorAnimation } from '../animation.js';
 import { globalMatrices, parseGltf } from '../glb.js';
+import { expandCompressed } from '../spz.js';
 import { computeRest } from '../rest.js';
 import { DATA_TEXTURE_MAX_WIDTH } from '../remap-glsl.js';
 import { RemapModifier, checkFault } from './shader.js';
@@ -323,8 +324,8 @@ export class AnchoredSplatMesh {
 }
 
 /**
- * Load a GLB with anchored splats for three.js + Spark: our reader for the anchors and the
- * splats (refusals throw AnchorError before anything is built), one Spark SplatMesh per splat
+ * Load a GLB with anchored splats for three.js + Spark (an SPZ-compressed rest pose decoded first,
+ * expandCompressed): our reader for the anchors and the splats (refusals throw AnchorError before anything is built), one Spark SplatMesh per splat
  * primitive under `root`, the remap installed as each anchored mesh's object modifier.
  * @param {string|Uint8Array|ArrayBuffer} source  URL or GLB bytes
  * @param {{name?: string, fault?: string|null}} [options]
@@ -343,6 +344,7 @@ export async function loadAnchoredAsset(source, options = {}) {
         bytes = source instanceof Uint8Array ? source : new Uint8Array(source);
     }
     name = name || 'asset.glb';
+    bytes = await expandCompressed(bytes, { name });   // SPZ-compressed rest poses decoded (refusals throw here)
     const fault = checkFault(options.fault ?? null);
     const { anchored: prims, plain: plainRefs, json } = readAnchoredGlb(bytes, { name });   // refusals throw here
     const doc = parseGltf(bytes);
