@@ -26,6 +26,9 @@ Each case is built to make one class of mistake visible (``catches``):
 * ``render-skinned``: an anchor mesh with a skin and an animation in the file, rendered at two
   animation times: the engine's (or the plugin's) playback of the file's animation.
 * ``render-sliver-stretched``: splats on sliver triangles stretched along the slivers.
+* ``render-spz-turn``: the two-tone sheet of ``render-turn-180`` written as a compact asset with
+  an SPZ-compressed rest pose (tags ``encoding:spz``, optional): a reader that skips the SPZ
+  frame change (RUB to glTF) draws the blue back layer in front at rest and the sheet mirrored.
 
 Everything is deterministic (seeded by the case id). Coordinates: glTF, +Y up, metres.
 """
@@ -80,6 +83,9 @@ class RenderCase:
     edit: Callable[[dict, bytes], tuple[dict, bytes]] | None = None
     #: global matrix of the node of every splat primitive (in file order), None = identity
     node_matrices: list[np.ndarray] = field(default_factory=list)
+    #: ``"spz"``: written as a compact asset with an SPZ-compressed rest pose (the reference
+    #: pictures are rendered from the decoded rest pose, what readers get)
+    compress: str | None = None
 
 
 # --------------------------------------------------------------------------- building blocks
@@ -176,6 +182,25 @@ def _turn_case() -> RenderCase:
                       "splats sorted by their rest positions (red stays in front)",
                       ["render", "render:depth-order"], SplatAsset([prim], "gsverse-conformance"),
                       frames)
+
+
+def _spz_turn_case() -> RenderCase:
+    cid = "render-spz-turn"
+    rng = case_rng(cid)
+    mesh = _grid(6, 6, -0.5, 0.5, -0.5, 0.5)
+    prim = _layers(mesh, rng, 10, 0.02, ((0.95, 0.15, 0.1), (0.1, 0.25, 0.95)), 0.07)
+    v = mesh.vertices.astype(np.float64)
+    cam = _front_camera((0, 0, 0), 2.3, azimuth=25.0)
+    frames = [RenderFrame("rest: the red front layer faces the camera", {"kind": "rest"}, cam),
+              RenderFrame("anchors turned 180 degrees about y: the blue back layer in front",
+                          _vertices(_rotate_y(v, 180.0)), cam)]
+    return RenderCase(cid, "The two-tone sheet of render-turn-180 as a compact asset whose rest "
+                      "pose is SPZ-compressed; its anchor mesh turns by 180 degrees about the "
+                      "vertical axis.",
+                      "the SPZ frame change (RUB to glTF) skipped: the blue back layer in front "
+                      "at rest; anchors derived from other values than the decoded rest pose",
+                      ["render", "render:depth-order", "encoding:spz"],
+                      SplatAsset([prim], "gsverse-conformance"), frames, compress="spz")
 
 
 def _fold_case() -> RenderCase:
@@ -392,4 +417,4 @@ def _sliver_case() -> RenderCase:
 def render_cases() -> list[RenderCase]:
     """Every render case of the suite, in a fixed order."""
     return [_turn_case(), _fold_case(), _packing_case(), _node_case(), _plain_case(),
-            _skinned_case(), _sliver_case()]
+            _skinned_case(), _sliver_case(), _spz_turn_case()]

@@ -13,7 +13,9 @@ Layout of one render case (``suite.json`` lists it under ``render_cases``)::
 The reference pictures come from the reference renderer (:mod:`gsverse_format.render`: the
 3DGS rules, depth-sorted by the deformed means) on the asset as read back, with every splat
 primitive remapped onto the frame's vertices (float64 reference remap) and then placed by the
-global matrix of its node (μ ← M μ, Σ ← M₃ Σ M₃ᵀ).
+global matrix of its node (μ ← M μ, Σ ← M₃ Σ M₃ᵀ). A case with an SPZ-compressed rest pose
+(``RenderCase.compress``) is written as a compact asset; read back, its rest pose is the decoded
+one and its anchors are derived from it, so the pictures show what a reader gets.
 """
 from __future__ import annotations
 
@@ -114,7 +116,10 @@ def render_reference(asset: SplatAsset, matrices: list[np.ndarray], poses: list[
 
 
 def _export_case(case: RenderCase, case_dir: Path) -> dict:
-    data = gltf_to_bytes(asset_to_gltf(case.asset))
+    if case.compress:
+        data = gltf_to_bytes(asset_to_gltf(case.asset, anchors="compact", compress=case.compress))
+    else:
+        data = gltf_to_bytes(asset_to_gltf(case.asset))
     if case.edit is not None:
         doc, blob = case.edit(*unpack_glb(data))
         data = pack_glb(doc, blob)
