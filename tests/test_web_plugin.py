@@ -136,11 +136,12 @@ _RENDER_FAULTS = {
     # splats sorted by their rest positions: the turned and folded sheets show the wrong side;
     # a twisted or bent tube may too
     "rest-sort": ({"render-turn-180", "render-fold"},
-                  {"render-node-transforms", "render-plain-and-anchored", "render-skinned"}),
+                  {"render-node-transforms", "render-plain-and-anchored", "render-skinned",
+                   "render-spz-turn"}),
     # scales handed over as (y, x, z): every anisotropic splat turns
     "scale-swizzle": ({"render-packing", "render-sliver-stretched"},
                       {"render-node-transforms", "render-plain-and-anchored", "render-skinned",
-                       "render-fold", "render-turn-180"}),
+                       "render-fold", "render-turn-180", "render-spz-turn"}),
     # the splat node's transform ignored: only the case with a transformed splat node
     "node-transform": ({"render-node-transforms"}, set()),
 }
