@@ -24,8 +24,8 @@ from .container import Context
 from .values import (RestPose, check_finite, check_nonnegative, check_opacities,
                      check_unit_quaternions)
 
-__all__ = ["SplatData", "check_splat_primitive", "check_properties", "check_semantics",
-           "quantization_step"]
+__all__ = ["SplatData", "check_splat_primitive", "check_primitive_json", "check_properties",
+           "check_semantics", "quantization_step"]
 
 _SH_RE = re.compile(r"SH_DEGREE_(\d+)_COEF_(\d+)")
 _REQUIRED = ("POSITION", f"{KHR}:ROTATION", f"{KHR}:SCALE", f"{KHR}:OPACITY",
@@ -142,18 +142,29 @@ def _format_of(name: str, quantized_positions: bool) -> tuple[str, tuple[Format,
     return None
 
 
-def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) -> SplatData:
-    """Check one primitive carrying ``KHR_gaussian_splatting`` and read its rest pose."""
-    pointer = f"/meshes/{m}/primitives/{p}"
-    data = SplatData(m, p, pointer)
+def check_primitive_json(ctx: Context, prim: dict, khr: Any,
+                         pointer: str) -> dict | None:
+    """The checks of a splat primitive's JSON every storage shares (its mode, the
+    ``KHR_gaussian_splatting`` properties, the attribute semantics); its attributes, or None
+    when they are not an object."""
     if prim.get("mode", 4) != 0:
         ctx.issues.add(Code.KHR_PRIMITIVE_NOT_POINTS, f"a {KHR} primitive must have mode POINTS "
                        f"(0), not {prim.get('mode', 4)!r}", pointer=f"{pointer}/mode")
     check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
     attrs = prim.get("attributes", {})
     if not isinstance(attrs, dict):
-        return data
+        return None
     check_semantics(ctx, attrs, pointer)
+    return attrs
+
+
+def check_splat_primitive(ctx: Context, m: int, p: int, prim: dict, khr: Any) -> SplatData:
+    """Check one primitive carrying ``KHR_gaussian_splatting`` and read its rest pose."""
+    pointer = f"/meshes/{m}/primitives/{p}"
+    data = SplatData(m, p, pointer)
+    attrs = check_primitive_json(ctx, prim, khr, pointer)
+    if attrs is None:
+        return data
     used = ctx.doc.get("extensionsUsed", [])
     quantized_positions = isinstance(used, list) and "KHR_mesh_quantization" in used
 

@@ -20,7 +20,7 @@ from gsverse_format.io.gltf.spz import decode_primitive, placeholder_count
 from gsverse_format.vocabulary import KHR, SPZ_EXTENSION
 
 from .container import Context
-from .khr import SplatData, check_properties, check_semantics, tok
+from .khr import SplatData, check_primitive_json, tok
 from .values import check_nonnegative, check_opacities, check_unit_quaternions
 
 __all__ = ["check_compressed_primitive", "check_compressed_anchor"]
@@ -31,14 +31,9 @@ def check_compressed_primitive(ctx: Context, m: int, p: int, prim: dict, khr: An
     pointer = f"/meshes/{m}/primitives/{p}"
     where = f"meshes[{m}].primitives[{p}]"
     data = SplatData(m, p, pointer)
-    if prim.get("mode", 4) != 0:
-        ctx.issues.add(Code.KHR_PRIMITIVE_NOT_POINTS, f"a {KHR} primitive must have mode POINTS "
-                       f"(0), not {prim.get('mode', 4)!r}", pointer=f"{pointer}/mode")
-    check_properties(ctx, khr, f"{pointer}/extensions/{KHR}")
-    attrs = prim.get("attributes", {})
-    if not isinstance(attrs, dict) or not isinstance(khr, dict):
+    attrs = check_primitive_json(ctx, prim, khr, pointer)
+    if attrs is None or not isinstance(khr, dict):
         return data
-    check_semantics(ctx, attrs, pointer)
     color_space = khr.get("colorSpace")
     try:
         degree = sh_degree_of(attrs, where, f"{pointer}/attributes")
