@@ -9,6 +9,7 @@
 // (gsverse_format/io/gltf/spz.py).
 
 import { AnchorError, EXTENSION, KHR, SPZ_EXTENSION, shDegree } from './anchor.js';
+import { crc32 } from './crc32.js';
 import { FLOAT, GltfError, UNSIGNED_BYTE, UNSIGNED_SHORT, isIndex, parseGltf } from './glb.js';
 
 export { SPZ_EXTENSION };
@@ -52,24 +53,6 @@ export function streamBytes(version, count, degree) {
  */
 export function streamLimit(count) {
     return streamBytes(3, count, 3);
-}
-
-/** CRC-32 (IEEE, reflected) table of the gzip trailer. */
-const CRC_TABLE = (() => {
-    const t = new Uint32Array(256);
-    for (let n = 0; n < 256; ++n) {
-        let c = n;
-        for (let k = 0; k < 8; ++k) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
-        t[n] = c >>> 0;
-    }
-    return t;
-})();
-
-/** @param {Uint8Array} data */
-function crc32(data) {
-    let c = 0xffffffff;
-    for (let i = 0; i < data.length; ++i) c = CRC_TABLE[(c ^ data[i]) & 0xff] ^ (c >>> 8);
-    return (c ^ 0xffffffff) >>> 0;
 }
 
 /**
