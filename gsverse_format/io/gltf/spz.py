@@ -66,10 +66,11 @@ def _from_stream(arrays: SpzArrays, color_space: str) -> SplatCloud:
                       sh.astype(np.float32), color_space)
 
 
-def compress(cloud: SplatCloud, *, level: int = 6) -> tuple[bytes, SplatCloud, dict[str, int]]:
+def compress(cloud: SplatCloud, *, level: int = 6) -> tuple[bytes, SplatCloud]:
     """The gzip member of ``cloud`` (glTF frame; zlib ``level``: 6, zlib's default, is within
     0.5 % of 9's size on splats at a third less time), the splats it decodes to (float32, glTF
-    frame; what readers get) and how many splats had a scale or colour clamped."""
+    frame; what readers get). What encoding clamps is counted by the writer's
+    ``compress_notes``."""
     means, q, sh = _turn(cloud.means, cloud.rotations, cloud.sh)
     arrays = SpzArrays(means, q, np.asarray(cloud.scales, np.float64),
                        np.asarray(cloud.opacities, np.float64), sh)
@@ -80,7 +81,7 @@ def compress(cloud: SplatCloud, *, level: int = 6) -> tuple[bytes, SplatCloud, d
     parts, _ = spz_stream.split_stream(data, header, "SPZ stream")
     decoded = _from_stream(spz_stream.decode(header, parts), cloud.color_space)
     decoded.extra.update(cloud.extra)
-    return payload, decoded, spz_stream.clamped_counts(arrays)
+    return payload, decoded
 
 
 def write_placeholders(b: BufferBuilder, cloud: SplatCloud) -> dict[str, int]:

@@ -258,7 +258,7 @@ def _gltf_document(asset: SplatAsset, *, quantize: dict | None = None,
         payload: bytes | None = None
         if compress == "spz":
             # everything below is written from what readers decode (spec: decode, then derive)
-            payload, c, _ = spz.compress(c)
+            payload, c = spz.compress(c)
             attrs = spz.write_placeholders(b, c)
         else:
             attrs = _rest_attributes(b, c, quant.get("ROTATION") if encoded is None
