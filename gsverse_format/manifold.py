@@ -39,7 +39,7 @@ import numpy as np
 
 from .atomic import interruptions_immediate
 from .errors import FormatError, UsageError
-from .meshops import mesh_stats, repair, weld
+from .meshops import edge_valence, face_components, repair, weld
 from .model import TriangleMesh
 
 __all__ = [
@@ -105,6 +105,18 @@ def _from_manifold(manifold: Any) -> TriangleMesh:
                         np.array(out.tri_verts, np.int64).reshape(-1, 3))
 
 
+def _edge_counts(mesh: TriangleMesh) -> tuple[int, int, int]:
+    """``(boundary edges, non-manifold edges, components)`` of ``mesh`` with the vertices at
+    equal positions merged (:func:`gsverse_format.meshops.weld`): the counts
+    :func:`gsverse_format.meshops.mesh_stats` gives for the welded mesh, without its other
+    statistics."""
+    welded = weld(mesh)
+    _, counts = edge_valence(welded.faces)
+    components, _ = face_components(welded.faces, len(welded.vertices))
+    return (int(np.count_nonzero(counts == 1)), int(np.count_nonzero(counts > 2)),
+            components)
+
+
 def _edges_closed(mesh: TriangleMesh) -> bool:
     """Whether every edge of ``mesh``, vertices at equal positions merged, has exactly two
     faces: a necessary condition for a closed 2-manifold, decided in numpy.
@@ -113,12 +125,14 @@ def _edges_closed(mesh: TriangleMesh) -> bool:
     one triangle, the fan of a polygon of 10⁴ corners) its constructor runs for minutes in
     native code that holds the interpreter, so that not even SIGTERM's handler can run; the
     edge counts already say such meshes are not closed."""
-    return mesh.face_count > 0 and mesh_stats(weld(mesh)).closed
+    return mesh.face_count > 0 and _edge_counts(mesh)[:2] == (0, 0)
 
 
-def _manifold_if_closed(m3d: Any, mesh: TriangleMesh) -> Any | None:
-    """manifold3d's ``Manifold`` of ``mesh`` when it is a closed 2-manifold, else None."""
-    if not _edges_closed(mesh):
+def _manifold_if_closed(m3d: Any, mesh: TriangleMesh,
+                        edges_closed: bool | None = None) -> Any | None:
+    """manifold3d's ``Manifold`` of ``mesh`` when it is a closed 2-manifold, else None
+    (``edges_closed``: :func:`_edges_closed` when the caller knows it)."""
+    if not (_edges_closed(mesh) if edges_closed is None else edges_closed):
         return None
     manifold = _to_manifold(m3d, mesh)
     if manifold.status() == m3d.Error.NoError and not manifold.is_empty():
@@ -132,16 +146,13 @@ def _is_manifold(m3d: Any, mesh: TriangleMesh) -> bool:
 
 def manifold_report(mesh: TriangleMesh) -> ManifoldReport:
     """Whether ``mesh`` is a closed 2-manifold (see the module docstring)."""
-    stats = mesh_stats(weld(mesh)) if mesh.face_count else None
-    boundary = stats.boundary_edges if stats else 0
-    nonmanifold = stats.nonmanifold_edges if stats else 0
-    components = stats.components if stats else 0
+    boundary, nonmanifold, components = _edge_counts(mesh) if mesh.face_count else (0, 0, 0)
+    edges_closed = mesh.face_count > 0 and boundary == 0 and nonmanifold == 0
     m3d = _manifold3d()
     if m3d is None:
-        closed = bool(stats is not None and stats.closed)
-        return ManifoldReport(closed, boundary, nonmanifold, components, "edges")
-    return ManifoldReport(_is_manifold(m3d, mesh), boundary, nonmanifold, components,
-                          "manifold3d")
+        return ManifoldReport(edges_closed, boundary, nonmanifold, components, "edges")
+    closed = _manifold_if_closed(m3d, mesh, edges_closed) is not None
+    return ManifoldReport(closed, boundary, nonmanifold, components, "manifold3d")
 
 
 def _require_manifold3d(what: str) -> Any:

@@ -145,41 +145,43 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
                                  f"only glTF output holds it")
         return _finish(asset, output_path, options, protect, summary, progress, start)
 
+    from .io.mesh import read_meshes_once
     from .scene import (anchor_scene, finish_physics, normalize_skin_weights,
                         read_scene_meshes)
 
-    source = options.source
-    if source == "auto":
-        from .converters import detect_source
+    with read_meshes_once():   # auto-detection and the loader read a --mesh file once
+        source = options.source
+        if source == "auto":
+            from .converters import detect_source
 
-        source, reason = detect_source(input_path, options.mesh)
-        summary.notes.append(f"detected source {source}: {reason}")
-    summary.source = source
-    progress.stage(f"reading {source} input")
-    src_options, notes = source_options(source, options)
-    summary.notes.extend(notes)
-    reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
-        else options.faces
-    edit = SplatEdit.from_options(options)
-    if not edit.is_identity:
-        summary.edits = vars(EditCounts())
-    if options.meshes:
-        before, after = edit.split()
-        result = load_source(source, input_path, options.mesh, src_options, frame_change=False,
-                             edit=before, summary=summary)
-        more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change,
-                                 lambda m: transform_mesh(m, before.mesh))
-        result = to_gltf(result) if options.frame_change else result
-        if after is not None and not after.is_identity:   # in the output's frame
-            result = _edit_source(result, after, summary, input_path)
-            more = [transform_mesh(m, after.mesh) for m in more]
-        read = list(zip([result.mesh, *more], options.meshes))
-    else:
-        result = load_source(source, input_path, options.mesh, src_options,
-                             frame_change=options.frame_change,
-                             reconstruct_faces=reconstruct_faces, progress=progress,
-                             edit=edit, summary=summary)
-        read = [(result.mesh, options.mesh or input_path)]
+            source, reason = detect_source(input_path, options.mesh)
+            summary.notes.append(f"detected source {source}: {reason}")
+        summary.source = source
+        progress.stage(f"reading {source} input")
+        src_options, notes = source_options(source, options)
+        summary.notes.extend(notes)
+        reconstruct_faces = options.reconstruct_faces if options.reconstruct_faces is not None \
+            else options.faces
+        edit = SplatEdit.from_options(options)
+        if not edit.is_identity:
+            summary.edits = vars(EditCounts())
+        if options.meshes:
+            before, after = edit.split()
+            result = load_source(source, input_path, options.mesh, src_options, frame_change=False,
+                                 edit=before, summary=summary)
+            more = read_scene_meshes(options.meshes[1:], result.frame, options.frame_change,
+                                     lambda m: transform_mesh(m, before.mesh))
+            result = to_gltf(result) if options.frame_change else result
+            if after is not None and not after.is_identity:   # in the output's frame
+                result = _edit_source(result, after, summary, input_path)
+                more = [transform_mesh(m, after.mesh) for m in more]
+            read = list(zip([result.mesh, *more], options.meshes))
+        else:
+            result = load_source(source, input_path, options.mesh, src_options,
+                                 frame_change=options.frame_change,
+                                 reconstruct_faces=reconstruct_faces, progress=progress,
+                                 edit=edit, summary=summary)
+            read = [(result.mesh, options.mesh or input_path)]
     for mesh, mesh_path in read:   # a rig's skin weights as readers use them
         if mesh is not None:
             normalize_skin_weights(mesh, mesh_path, options, summary)

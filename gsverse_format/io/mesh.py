@@ -4,8 +4,10 @@ Vertex and face order are kept as the file has them: converters that bind by fac
 (SuGaR, GaMeS) depend on it. PLY meshes are read by the project's own strict PLY reader
 (:func:`gsverse_format.io.ply.read_ply_mesh`; polygons are fan-triangulated in file order),
 glTF scenes by its hardened glTF reader (flattened with their node transforms applied, URIs
-never followed outside the asset's folder, instancing bounded), OBJ, STL and OFF by trimesh
-(``process=False``; polygons fan-triangulated by trimesh).
+never followed outside the asset's folder, instancing bounded), OBJ in the plain subset
+anchor meshes use by :mod:`gsverse_format.io.obj` (vectorised, the same mesh trimesh would
+return), other OBJ, STL and OFF by trimesh (``process=False``; polygons triangulated by
+trimesh).
 
 trimesh is handed the file's bytes, never its path: it has no way to open another file. OBJ
 material libraries (``mtllib``, which may name any path, ``../..`` or absolute) are removed
@@ -15,11 +17,13 @@ read, inside the folder or outside it. Files larger than
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import re
 import struct
 import warnings
+from typing import Iterator
 
 import numpy as np
 
@@ -27,6 +31,7 @@ from ..atomic import interruptions_immediate
 from ..errors import FormatError, UsageError
 from ..limits import MAX_MESH_FILE_BYTES
 from ..model import TriangleMesh
+from .obj import read_obj_triangles
 from .ply.header import PlyHeader
 
 MESH_EXTENSIONS = (".obj", ".ply", ".stl", ".off", ".glb", ".gltf")
@@ -94,9 +99,47 @@ def _check_binary_stl(data: bytes, path: str) -> None:
                           f"({84 + 50 * count} bytes) but the file has {len(data)} bytes", path)
 
 
+#: The meshes read inside :func:`read_meshes_once`, by file identity (None outside it).
+_READ_ONCE: dict[tuple, TriangleMesh] | None = None
+
+
+@contextlib.contextmanager
+def read_meshes_once() -> Iterator[None]:
+    """Inside this block :func:`read_mesh` parses a file once: a second read of the same file
+    (same device, inode, size and modification time) returns the mesh the first read
+    returned, the same object. ``gsverse-convert`` wraps source detection and loading in it:
+    a detector that looks at the ``--mesh`` file (SuGaR's counts its faces) and the loader then
+    share one parse. Callers inside the block must not change the mesh in place. Blocks nest;
+    the meshes are let go when the outermost block ends."""
+    global _READ_ONCE
+    outer = _READ_ONCE is None
+    if outer:
+        _READ_ONCE = {}
+    try:
+        yield
+    finally:
+        if outer:
+            _READ_ONCE = None
+
+
 def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
-    """Read a triangle mesh; raises :class:`FormatError` with a one-line cause on bad input."""
+    """Read a triangle mesh; raises :class:`FormatError` with a one-line cause on bad input
+    (each file parsed once inside :func:`read_meshes_once`)."""
     path = os.fspath(path)
+    if _READ_ONCE is None:
+        return _read_mesh(path)
+    try:
+        st = os.stat(path)
+    except OSError:
+        return _read_mesh(path)   # its own one-line error
+    key = (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+    mesh = _READ_ONCE.get(key)
+    if mesh is None:
+        mesh = _READ_ONCE[key] = _read_mesh(path)
+    return mesh
+
+
+def _read_mesh(path: str) -> TriangleMesh:
     ext = os.path.splitext(path)[1].lower()
     if ext not in MESH_EXTENSIONS:
         raise FormatError(f"unsupported mesh format {ext or '(no extension)'}; "
@@ -114,15 +157,23 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
 
         _refuse_point_cloud(read_ply_header(path), path)
         return read_ply_mesh(path, triangulate=True)
+    try:
+        data = _file_bytes(path)
+    except OSError as exc:
+        raise FormatError(f"cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0],
+                          path) from None
+    if ext == ".obj":
+        data = strip_material_libraries(data)
+        plain = read_obj_triangles(data)
+        if plain is not None:
+            del data
+            return _triangle_mesh(*plain, path)
+    elif ext == ".stl":
+        _check_binary_stl(data, path)
     with interruptions_immediate():   # trimesh's import catches BaseException too
         import trimesh
 
     try:
-        data = _file_bytes(path)
-        if ext == ".obj":
-            data = strip_material_libraries(data)
-        elif ext == ".stl":
-            _check_binary_stl(data, path)
         # trimesh's readers catch BaseException and retry on slower paths, which would
         # swallow an interruption raised inside them: there a stop signal ends the process
         with warnings.catch_warnings(), interruptions_immediate():
@@ -142,8 +193,12 @@ def read_mesh(path: str | os.PathLike[str]) -> TriangleMesh:
         raise FormatError(f"cannot read mesh: {type(exc).__name__}: {exc}".splitlines()[0], path)
     if not isinstance(loaded, trimesh.Trimesh):
         raise FormatError("file holds no triangle mesh", path)
-    vertices = np.asarray(loaded.vertices, dtype=np.float64)
-    faces = np.asarray(loaded.faces, dtype=np.int64)
+    return _triangle_mesh(np.asarray(loaded.vertices, dtype=np.float64),
+                          np.asarray(loaded.faces, dtype=np.int64), path)
+
+
+def _triangle_mesh(vertices: np.ndarray, faces: np.ndarray, path: str) -> TriangleMesh:
+    """The checked float32 / uint32 mesh of what a reader returned (refused with one line)."""
     if faces.size == 0:
         raise FormatError("mesh has no faces", path)
     if not np.all(np.isfinite(vertices)):
