@@ -79,9 +79,9 @@ def _external(module: str, args: list[str], log) -> dict:
         return {"missing": f"benchmarks/{module}.py"}
     cmd = [sys.executable, "-m", f"benchmarks.{module}", *args]
     log(f"{module}: running `{' '.join(['python', '-m', f'benchmarks.{module}', *args])}`")
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE.parent), env.get("PYTHONPATH")]))
-    res = run_process(cmd, cwd=str(HERE.parent), env=env)
+    from . import child_env
+
+    res = run_process(cmd, cwd=str(HERE.parent), env=child_env(benchmarks=True))
     res["command"] = " ".join(["python", "-m", f"benchmarks.{module}", *args])
     log(f"{module}: done in {res['wall_s']:.1f} s (exit {res['rc']})")
     return res

@@ -44,6 +44,7 @@ import time
 
 import numpy as np
 
+from . import child_env
 from .timing import Timing, cpu_busy_seconds, measure
 
 SIGMA_EDGES = 0.5         # query noise, in mean edge lengths
@@ -141,7 +142,7 @@ def _own_cpu() -> float:
 def _compile_from_scratch() -> float | None:
     """Seconds to import and compile the kernels in a fresh process with an empty cache."""
     with tempfile.TemporaryDirectory() as tmp:
-        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        env = dict(child_env(), NUMBA_CACHE_DIR=tmp)
         code = ("import time; t = time.perf_counter(); "
                 "from gsverse_format.nearest import compiled; compiled.warm_up(); "
                 "print(time.perf_counter() - t)")
@@ -182,7 +183,8 @@ def _small_jobs() -> list[str]:
         for method in ("numba", "numpy"):
             try:
                 out = subprocess.run([sys.executable, "-c", _SMALL_JOB, str(level), str(n), method],
-                                     capture_output=True, text=True, timeout=600, check=True)
+                                     capture_output=True, text=True, timeout=600, check=True,
+                                     env=child_env())
                 faces, sec = out.stdout.split()[-2:]
                 cells.append(f"{method} {float(sec):.2f} s")
             except (subprocess.SubprocessError, ValueError):

@@ -147,9 +147,9 @@ def run_process(args: list[str], cwd: str | None = None, env: dict | None = None
 
 
 def _env() -> dict:
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(HERE.parent), env.get("PYTHONPATH")]))
-    return env
+    from . import child_env
+
+    return child_env()
 
 
 def _python(module_main: str, *args: str) -> list[str]:

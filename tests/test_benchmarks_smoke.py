@@ -36,3 +36,27 @@ def test_quick_benchmark_writes_the_report(tmp_path):
         for png in ("remap_speed.png", "accuracy_magnitude.png", "accuracy_resolution.png",
                     "accuracy_quantization.png", "pareto.png", "stretch.png"):
             assert (out / png).stat().st_size > 1000, png
+
+
+def test_benchmarks_use_a_regular_install(tmp_path):
+    """Run from the checkout against a regular (non-editable) install, the benchmarks import
+    the installed package, which has ``gsverse_format.converters``, not the checkout's source
+    folder, which lacks it; and a child process the convert benchmark starts does too."""
+    site = tmp_path / "site"
+    build = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps",
+                            "--no-build-isolation", "--target", str(site), str(ROOT)],
+                           capture_output=True, text=True, timeout=600,
+                           env=dict(os.environ, PIP_NO_INPUT="1"))
+    assert build.returncode == 0, build.stderr[-2000:]
+    env = dict(os.environ, PYTHONPATH=str(site))
+    code = ("import benchmarks, gsverse_format, gsverse_format.converters; "
+            "from benchmarks.convert import _env, _python, run_process; "
+            "print(gsverse_format.__file__); "
+            "r = run_process(_python('gsverse_format.cli.info', '--version'), env=_env()); "
+            "print(r['rc'], r['output'].strip().splitlines()[-1])")
+    proc = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    where, child = proc.stdout.strip().splitlines()[-2:]
+    assert Path(where).resolve().is_relative_to(site.resolve())
+    assert child.startswith("0 ")
