@@ -501,7 +501,8 @@ def splat_problem(c: SplatCloud) -> str | None:
         return "no splats"
     for name in ("means", "rotations", "scales", "opacities", "sh"):
         values = getattr(c, name)
-        if not np.all(np.isfinite(values)):
+        # NaN and infinity reach the minimum or the maximum: no temporary the size of values
+        if not (np.isfinite(values.min()) and np.isfinite(values.max())):
             bad = int(np.count_nonzero(~np.isfinite(values).reshape(len(c), -1).all(axis=1)))
             return f"non-finite {name} (NaN or infinity) in {bad} of {len(c)} splats"
     negative = int(np.count_nonzero((c.scales < 0).any(axis=1)))

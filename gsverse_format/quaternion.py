@@ -24,10 +24,12 @@ def normalize(q: np.ndarray) -> np.ndarray:
     """Return unit quaternions (float64). A zero quaternion becomes identity (0, 0, 0, 1)."""
     q = np.asarray(q, dtype=np.float64)
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    identity = np.zeros_like(q)
-    identity[..., 3] = 1.0
-    safe = np.where(norm > 0.0, norm, 1.0)
-    return np.where(norm > 0.0, q / safe, identity)
+    regular = norm > 0.0          # False for a zero (and a NaN) norm
+    # one output array, divided in place where the norm is regular (no full-size temporaries
+    # besides it: this runs on every splat of a conversion)
+    out = np.divide(q, norm, out=np.empty_like(q), where=regular)
+    out[~regular[..., 0]] = (0.0, 0.0, 0.0, 1.0)
+    return out
 
 
 def multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
