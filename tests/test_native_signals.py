@@ -188,6 +188,9 @@ def test_sigterm_while_trimesh_reads_a_mesh_ends_the_process(tmp_path):
 
     obj = tmp_path / "mesh.obj"
     write_obj(example_mesh(subdivisions=6), str(obj))
+    # a group statement: outside the plain subset that gsverse_format.io.obj reads itself,
+    # so trimesh reads this file
+    obj.write_bytes(b"g body\n" + obj.read_bytes())
     _assert_killed_by_sigterm(_run_child(textwrap.dedent(f"""
         from gsverse_format.io.mesh import read_mesh
 
