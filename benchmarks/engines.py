@@ -69,6 +69,11 @@ def software(renderer: str) -> bool:
     return bool(SOFTWARE.search(renderer or ""))
 
 
+def ratio(x: float) -> str:
+    """A ratio for the tables: two decimals, three below 0.1 (a sort at 1 % of a frame)."""
+    return f"{x:.2f}" if abs(x) >= 0.1 else f"{x:.3f}"
+
+
 def _node(args: list[str], log) -> dict:
     cmd = ["node", str(SCRIPT.relative_to(WEB)), "--json", *args]
     log(f"engines: running `{' '.join(cmd)}` in plugins/web")
@@ -111,8 +116,8 @@ def _web_gpu_row(gpu: dict) -> dict:
                 "result": "empty: no GPU on this machine (Chromium asked for the GPU renders "
                           "through a software rasterizer)"}
     return {"target": "web shaders (WebGL2)", "device": renderer, "rows": gpu["rows"],
-            "result": "; ".join(f"{r['engine']} {r['n']:,}: remap / static {r['remapRatio']:.2f}, "
-                                f"sort / static {r['sortRatio']:.2f}, static {r['baseMs']:.2f} ms"
+            "result": "; ".join(f"{r['engine']} {r['n']:,}: remap / static {ratio(r['remapRatio'])}, "
+                                f"sort / static {ratio(r['sortRatio'])}, static {r['baseMs']:.2f} ms"
                                 for r in gpu["rows"])}
 
 
@@ -174,7 +179,7 @@ def markdown(res: dict) -> list[str]:
         L.append("|---|---|---|---|---|---|---|")
         for r in res.get("rows", []):
             L.append(f"| {r['engine']} | {r['n']:,} | {r['baseMs']:.1f} | {r['remapMs']:.1f} | "
-                     f"{r['remapRatio']:.2f} | {r['sortMs']:.1f} | {r['sortRatio']:.2f} |")
+                     f"{ratio(r['remapRatio'])} | {r['sortMs']:.1f} | {ratio(r['sortRatio'])} |")
         L.append("")
     L += ["GPU rows:", "", "| target | device | result |", "|---|---|---|"]
     for g in res.get("gpu_rows", []):
