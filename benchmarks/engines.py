@@ -10,9 +10,11 @@ at each size, rounds of three interleaved frames on the synthetic tube of
 * static frame: one rendered frame of the splats as they are: the engine's own per-frame splat
   work (its update and the draw of every splat; the camera stands still, so nothing is sorted),
   fenced by a 1-pixel readback of the canvas;
-* remap: a remapped frame (a new pose: the vertex upload and the engine's pass of every splat
-  through the remap, PlayCanvas's work-buffer copy or Spark's regeneration, then the same draw)
-  minus the static frame of its round;
+* remap: PlayCanvas, a remapped frame (a new pose: the vertex upload and the engine's
+  work-buffer copy of every splat through the remap chunk, then the same draw) minus the static
+  frame of its round (the copy runs inside the frame); Spark, its regeneration of every splat
+  with the remap as the mesh's object modifier, timed on its own (Spark runs it apart from the
+  draw) and fenced by the same readback;
 * sort: the order by the deformed positions (PlayCanvas: the deformed means into its sort
   centres on the CPU plus its worker's sort; Spark: its readback of the depths, its worker's
   sort and the upload of the order).
@@ -165,8 +167,9 @@ def markdown(res: dict) -> list[str]:
         L.append(f"`{res['command']}` in plugins/web (a separate process: {res['wall_s']:.0f} s). "
                  f"Median of {res['rounds']} rounds of interleaved frames per row. Static frame: one "
                  "rendered frame of the same splats with no remap (the engine's own per-frame splat "
-                 "work, fenced by a 1-pixel readback); remap: a remapped frame (new pose uploaded, "
-                 "every splat through the remap) minus the static frame of its round; sort: the "
+                 "work, fenced by a 1-pixel readback); remap: PlayCanvas, a remapped frame (new pose "
+                 "uploaded, every splat copied through the remap) minus the static frame of its "
+                 "round; Spark, its regeneration of every splat through the remap, fenced; sort: the "
                  "order by the deformed positions (PlayCanvas: sort centres on the CPU + its "
                  "worker's sort; Spark: depth readback + its worker's sort). The ratios are the "
                  "result; the milliseconds are those of the device named below.")

@@ -7,9 +7,10 @@
 // --size x --size pixels with the tube filling about half its height. For PlayCanvas
 // (bench/page/bench.js) and three.js + Spark (bench/page/three-bench.js), per size, --rounds
 // rounds of three interleaved frames: a static frame (the engine's own per-frame splat work:
-// the draw of every splat), a remapped frame (a new pose remapped, then the same draw) and the
-// sort by the deformed positions; medians over rounds, and the remap's and the sort's cost as
-// ratios to the static frame. A software rasterizer makes the milliseconds say little about a
+// the draw of every splat), a remapped frame (a new pose remapped, then the same draw; the
+// remap's cost is PlayCanvas's frame minus the static one, Spark's regeneration pass timed on
+// its own) and the sort by the deformed positions; medians over rounds, and the remap's and the
+// sort's cost as ratios to the static frame. A software rasterizer makes the milliseconds say little about a
 // GPU; the ratios are the result. The renderer string says which device drew.
 // --gpu: Chromium asked for a real GPU (GPU_ARGS); when its WebGL renderer is a software one
 // (SwiftShader, llvmpipe: no GPU here) nothing is timed and the output says which renderer.

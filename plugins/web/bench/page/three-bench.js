@@ -25,13 +25,15 @@ async function init(options = {}) {
 }
 
 /**
- * The three frames of a round, as for PlayCanvas (bench.js engineFrames):
+ * The three frames of a round, as for PlayCanvas (bench.js engineFrames) but for the remap:
  *   static:   renderer.render of the splats as Spark holds them (its draw of every splat; no
  *             regeneration, no sort: the camera stands still and autoUpdate is off);
  *   remapped: setVertices (a new pose) then Spark's update, which regenerates every splat
- *             through its generator with the remap as the mesh's object modifier, then the same
- *             render; Spark's sort is held back for this frame (its `sorting` flag, read by its
- *             driveSort), so remapMs = this frame minus the static frame of its round;
+ *             through its generator with the remap as the mesh's object modifier, fenced by a
+ *             1-pixel readback of the canvas (remapMs: the remap timed on its own, as Spark runs
+ *             it apart from the draw; a difference of two frames would drown it in the draw's
+ *             variance), then the same render (remapFrameMs: both); Spark's sort is held back
+ *             meanwhile (its `sorting` flag, read by its driveSort);
  *   sorted:   Spark's driveSort of the deformed splats just generated: its readback of their
  *             depths, the sort in its worker and the upload of the order (sortMs).
  * Every frame ends with a 1-pixel readback of the canvas, which waits for the GPU to finish it.
@@ -46,10 +48,14 @@ async function engineFrames(n, opts = {}) {
     const splat = new AnchoredSplatMesh(prim);
     scene.add(splat.mesh);
     const pixel = new Uint8Array(4);
-    const draw = () => {
-        renderer.render(scene, cam);
+    /** a 1-pixel readback of the canvas: waits for every GL command issued before it */
+    const fence = () => {
         gl.bindFramebuffer(gl.FRAMEBUFFER, null);
         gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+    };
+    const draw = () => {
+        renderer.render(scene, cam);
+        fence();
     };
     s.minSortIntervalMs = 0;
     const rest = prim.anchorMesh.vertices;
@@ -65,8 +71,10 @@ async function engineFrames(n, opts = {}) {
             s.sorting = false;
         }
         if (s.current === before) throw new Error('Spark did not regenerate the splats');
+        fence();
+        const remapMs = performance.now() - t0;
         draw();
-        return performance.now() - t0;
+        return { remapMs, remapFrameMs: performance.now() - t0 };
     };
     const sortNow = async () => {
         const t0 = performance.now();
@@ -91,9 +99,9 @@ async function engineFrames(n, opts = {}) {
         draw();
         const baseMs = performance.now() - t0;
         deform(rest, verts, 0.37 * i + 0.1);
-        const remapFrameMs = await remapped();
+        const { remapMs, remapFrameMs } = await remapped();
         const sortMs = await sortNow();
-        rows.push({ baseMs, remapFrameMs, remapMs: remapFrameMs - baseMs, sortMs });
+        rows.push({ baseMs, remapFrameMs, remapMs, sortMs });
     }
     splat.destroy();
     return summarize('three.js + Spark', n, rows);
