@@ -13,8 +13,10 @@ inputs against the readers' limits (``benchmarks/hostile.py``, a separate proces
 size of anchored assets against plain KHR (``benchmarks/size.py``, a separate process), peak
 memory, accuracy against analytic deformations across profiles, anchor resolutions and
 quantizations with the cost of each point, the stretch comparison with a VR-GS-style cage,
-and the CPU renderer's speed with the remap's accuracy in image space (PSNR/SSIM,
-``benchmarks/render.py``).
+the CPU renderer's speed with the remap's accuracy in image space (PSNR/SSIM,
+``benchmarks/render.py``), and the remap and the deformed sort in each web engine plugin as
+ratios to the engine's own splat pass, with the GPU rows (``benchmarks/engines.py``: headless
+Chromium run by node as a separate process).
 """
 from __future__ import annotations
 
@@ -27,7 +29,8 @@ import sys
 import time
 from pathlib import Path
 
-SECTIONS = ("remap", "binding", "convert", "validate", "hostile", "size", "accuracy", "render")
+SECTIONS = ("remap", "binding", "convert", "validate", "hostile", "size", "accuracy", "render",
+            "engines")
 HERE = Path(__file__).resolve().parent
 
 
@@ -132,6 +135,10 @@ def main(argv: list[str] | None = None) -> int:
         from . import render
 
         res["render"] = render.run(quick, log)
+    if "engines" in sections:
+        from . import engines
+
+        res["engines"] = engines.run(quick, log)
     res["self_peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     res["meta"] = _meta(argv, quick)
     res["meta"]["seconds"] = time.perf_counter() - t0

@@ -516,6 +516,10 @@ def write_report(res: dict, out: Path) -> Path:
         from .render import markdown as render_md
 
         L += render_md(res["render"]) + [""]
+    if res.get("engines"):
+        from .engines import markdown as engines_md
+
+        L += engines_md(res["engines"])
     path = out / "report.md"
     path.write_text("\n".join(L) + "\n", encoding="utf-8")
     (out / "results.json").write_text(json.dumps(res, indent=1, default=_json_default), encoding="utf-8")

@@ -92,3 +92,55 @@ def test_size_benchmark_puts_the_three_layouts_side_by_side():
         assert r[9] == f"{compact_spz / spz:.3f}×"
         assert float(r[13]) <= 1.0                  # decoded within the stated SPZ bounds
         assert all(float(v) <= 1.0 for v in r[14].split(", "))
+
+
+def _engines(args: list[str], **env_changes) -> subprocess.CompletedProcess:
+    env = dict(os.environ, **env_changes)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    return subprocess.run([sys.executable, "-m", "benchmarks.engines", *args], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_engines_benchmark_rows_are_well_formed():
+    """``python -m benchmarks.engines`` at a tiny size: a row per engine with its static frame,
+    remap and sort and their ratios, and the two GPU rows (timings are not checked)."""
+    import json
+    import math
+
+    out = _engines(["--sizes", "2000", "--rounds", "1", "--json"])
+    assert out.returncode == 0, out.stderr[-2000:]
+    res = json.loads(out.stdout)
+    if res.get("skipped"):
+        pytest.skip(res["skipped"])
+    assert not res.get("error"), res
+    assert {r["engine"] for r in res["rows"]} == {"PlayCanvas", "three.js + Spark"}
+    for r in res["rows"]:
+        assert r["n"] == 2000 and r["rounds"] == 1
+        for key in ("baseMs", "remapFrameMs", "remapMs", "sortMs", "remapRatio", "sortRatio"):
+            assert isinstance(r[key], (int, float)) and math.isfinite(r[key]), (key, r)
+        assert r["baseMs"] > 0 and r["remapFrameMs"] > 0 and r["sortMs"] >= 0
+        assert math.isclose(r["remapRatio"], r["remapMs"] / r["baseMs"])
+        assert math.isclose(r["sortRatio"], r["sortMs"] / r["baseMs"])
+    assert len(res["backends"]) == 2 and all(b["renderer"] for b in res["backends"])
+    web, native = res["gpu_rows"]
+    assert web["target"].startswith("web shaders") and native["target"].startswith("native kernels")
+    if "SwiftShader" in web["device"]:
+        assert web["result"].startswith("empty: no GPU") and "rows" not in web
+    # the report section renders the rows
+    md = subprocess.run([sys.executable, "-c", "import json, sys; from benchmarks.engines import markdown; "
+                         "print('\\n'.join(markdown(json.load(sys.stdin))))"], input=out.stdout, cwd=ROOT,
+                        env=dict(os.environ, PYTHONPATH=str(ROOT)), capture_output=True, text=True,
+                        timeout=120)
+    assert md.returncode == 0, md.stderr[-2000:]
+    table = [line for line in md.stdout.splitlines() if line.startswith(("| PlayCanvas |", "| three.js + Spark |"))]
+    assert len(table) == 2 and all(line.count("|") == 8 for line in table)
+    assert "| web shaders (WebGL2) |" in md.stdout and "| native kernels" in md.stdout
+
+
+def test_engines_benchmark_says_why_it_did_not_run(tmp_path):
+    """Without node (an empty PATH) the section says why, and so do the GPU rows."""
+    out = _engines(["--sizes", "2000"], PATH=str(tmp_path))
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "Skipped: node is not installed." in out.stdout
+    assert "| web shaders (WebGL2) | – | not run: node is not installed |" in out.stdout
+    assert "| native kernels (GLSL/HLSL, Vulkan) | – | empty: vulkaninfo is not installed |" in out.stdout

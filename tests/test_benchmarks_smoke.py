@@ -26,7 +26,8 @@ def test_quick_benchmark_writes_the_report(tmp_path):
                     "## File size: anchored against plain KHR",
                     "## Peak memory", "## Accuracy against analytic deformations",
                     "## Stretch: our profiles against a VR-GS-style cage",
-                    "## Rendering: speed and accuracy in image space"):
+                    "## Rendering: speed and accuracy in image space",
+                    "## Engines: the remap and the deformed sort against the engine's own splat pass"):
         assert heading in report
     results = json.loads((out / "results.json").read_text(encoding="utf-8"))
     assert results["remap"]["rows"] and results["accuracy"]["rows"]

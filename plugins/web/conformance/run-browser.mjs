@@ -41,6 +41,13 @@ export const CHROMIUM_ARGS = [
 ];
 
 /**
+ * Chromium flags for a real GPU when there is one (benchmarks): Chromium's own choice of GL
+ * backend, the GPU blocklist ignored; SwiftShader only as its fallback (the renderer string
+ * then says so).
+ */
+export const GPU_ARGS = CHROMIUM_ARGS.filter((a) => a !== '--disable-gpu' && a !== '--use-angle=swiftshader');
+
+/**
  * The pages of each engine plugin: numbers level, render level, and how harness.json names it.
  * @type {{[engine: string]: {numbers: string, render: string, name: (device: string) => string, dump: string}}}
  */
@@ -81,9 +88,10 @@ const LAUNCH_ATTEMPTS = 3;
  * Start headless Chromium with a fresh profile, retrying a failed start (only the start: a
  * failure after the browser is up is reported as it is).
  * @param {boolean} webgpu
+ * @param {boolean} [gpu]  GPU_ARGS: a real GPU where there is one
  * @returns {Promise<{context: import('playwright-core').BrowserContext, userDataDir: string}>}
  */
-async function launchBrowser(webgpu) {
+async function launchBrowser(webgpu, gpu = false) {
     let lastError = null;
     for (let attempt = 1; attempt <= LAUNCH_ATTEMPTS; ++attempt) {
         const userDataDir = mkdtempSync(join(tmpdir(), 'gsverse-chromium-'));
@@ -91,7 +99,7 @@ async function launchBrowser(webgpu) {
             const context = await chromium.launchPersistentContext(userDataDir, {
                 executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
                 headless: true,
-                args: webgpu ? [...CHROMIUM_ARGS, ...WEBGPU_ARGS] : CHROMIUM_ARGS,
+                args: gpu ? GPU_ARGS : webgpu ? [...CHROMIUM_ARGS, ...WEBGPU_ARGS] : CHROMIUM_ARGS,
                 viewport: { width: 256, height: 256 },
                 timeout: 60000 * timeScale(),
             });
@@ -107,8 +115,8 @@ async function launchBrowser(webgpu) {
 
 /**
  * Start the static server and headless Chromium on a page of this package.
- * @param {{suiteDir?: string, page?: string, extraMounts?: {[prefix: string]: string}, webgpu?: boolean}} options
- *   page: path under the package, e.g. 'conformance/page/index.html'
+ * @param {{suiteDir?: string, page?: string, extraMounts?: {[prefix: string]: string}, webgpu?: boolean, gpu?: boolean}} options
+ *   page: path under the package, e.g. 'conformance/page/index.html'; gpu: GPU_ARGS (benchmarks)
  * @returns {Promise<{page: import('playwright-core').Page, url: string, close: () => Promise<void>}>}
  */
 export async function launchPage(options) {
@@ -121,7 +129,7 @@ export async function launchPage(options) {
     /** @type {string} */
     let userDataDir;
     try {
-        ({ context, userDataDir } = await launchBrowser(!!options.webgpu));
+        ({ context, userDataDir } = await launchBrowser(!!options.webgpu, !!options.gpu));
     } catch (err) {
         await server.close();
         throw err;

@@ -9,78 +9,10 @@ import { RemapProbe } from '../../src/playcanvas/probe.js';
 import { describeBackend, startApp } from '../../conformance/page/engine-page.js';
 import { computeRest } from '../../src/rest.js';
 import { remapCpuRotationScale } from '../../src/remap-cpu.js';
+import { deform, summarize, synthetic } from './synthetic.js';
 
 /** @type {pc.Application|null} */
 let app = null;
-
-/** A small deterministic PRNG (mulberry32). @param {number} seed */
-function random(seed) {
-    return () => {
-        seed = (seed + 0x6d2b79f5) | 0;
-        let t = Math.imul(seed ^ (seed >>> 15), 1 | seed);
-        t = (t + Math.imul(t ^ (t >>> 7), 61 | t)) ^ t;
-        return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
-    };
-}
-
-/**
- * A tube of rings x segments vertices and n splats bound to random faces.
- * @param {number} n @param {'affine'|'rigid'|'games'} law
- */
-function synthetic(n, law, rings = 64, segments = 64) {
-    const V = rings * segments;
-    const vertices = new Float32Array(3 * V);
-    for (let r = 0; r < rings; ++r) {
-        for (let s = 0; s < segments; ++s) {
-            const a = (2 * Math.PI * s) / segments, v = r * segments + s;
-            vertices[3 * v] = Math.cos(a);
-            vertices[3 * v + 1] = (4 * r) / (rings - 1) - 2;
-            vertices[3 * v + 2] = Math.sin(a);
-        }
-    }
-    const F = 2 * (rings - 1) * segments;
-    const indices = new Uint32Array(3 * F);
-    let f = 0;
-    for (let r = 0; r + 1 < rings; ++r) {
-        for (let s = 0; s < segments; ++s) {
-            const a = r * segments + s, b = r * segments + ((s + 1) % segments);
-            indices.set([a, b, a + segments], 3 * f++);
-            indices.set([b, b + segments, a + segments], 3 * f++);
-        }
-    }
-    const rnd = random(12345);
-    const faceIndex = new Uint32Array(n), barycentrics = new Float32Array(2 * n);
-    const normalOffset = new Float32Array(n), rho = new Float32Array(n);
-    const localRotation = new Float32Array(4 * n), localScale = new Float32Array(3 * n);
-    const means = new Float32Array(3 * n);
-    for (let i = 0; i < n; ++i) {
-        const face = Math.floor(rnd() * F);
-        let b1 = rnd(), b2 = rnd();
-        if (b1 + b2 > 1) { b1 = 1 - b1; b2 = 1 - b2; }
-        faceIndex[i] = face; barycentrics[2 * i] = b1; barycentrics[2 * i + 1] = b2;
-        normalOffset[i] = 0.02 * (rnd() - 0.5); rho[i] = 0.5 + rnd();
-        const q = [rnd() - 0.5, rnd() - 0.5, rnd() - 0.5, rnd() - 0.5];
-        const len = Math.hypot(...q);
-        for (let k = 0; k < 4; ++k) localRotation[4 * i + k] = q[k] / len;
-        for (let k = 0; k < 3; ++k) localScale[3 * i + k] = 0.005 + 0.02 * rnd();
-        const i0 = indices[3 * face], i1 = indices[3 * face + 1], i2 = indices[3 * face + 2];
-        for (let k = 0; k < 3; ++k) {
-            const v0 = vertices[3 * i0 + k];
-            means[3 * i + k] = v0 + b1 * (vertices[3 * i1 + k] - v0) + b2 * (vertices[3 * i2 + k] - v0);
-        }
-    }
-    const games = law === 'games';
-    /** @type {any} */
-    const prim = {
-        splatMesh: 0, splatPrimitive: 0, node: null, nodeMatrix: null, count: n, shDegree: 0, shCoefficients: 1,
-        rest: { means, rotations: new Float32Array(4 * n), scales: new Float32Array(3 * n), opacity: new Float32Array(n), sh: new Float32Array(3 * n) },
-        anchorMesh: { mesh: 1, primitive: 0, node: null, vertexCount: V, faceCount: F, indexed: true, vertices, indices },
-        profile: games ? 'games' : 'local', deformation: games ? null : law,
-        faceIndex, barycentrics, normalOffset: games ? null : normalOffset, localRotation: games ? null : localRotation,
-        localScale: games ? null : localScale, rho: games ? rho : null, componentTypes: {},
-    };
-    return prim;
-}
 
 /**
  * The engine's resource for the synthetic splats, rows in the engine's (Morton) order as
@@ -105,24 +37,10 @@ function engineResource(prim) {
     return new pc.GSplatResource(/** @type {any} */ (app).graphicsDevice, data);
 }
 
-/**
- * A deformation of the tube at time t (bend + twist + breathing).
- * @param {Float32Array} rest @param {Float32Array} out @param {number} t
- */
-function deform(rest, out, t) {
-    for (let v = 0; v < rest.length / 3; ++v) {
-        const x = rest[3 * v], y = rest[3 * v + 1], z = rest[3 * v + 2];
-        const a = 0.3 * Math.sin(t) * y, s = 1 + 0.1 * Math.sin(2 * t + y);
-        out[3 * v] = s * (x * Math.cos(a) - z * Math.sin(a)) + 0.1 * Math.sin(t) * y * y;
-        out[3 * v + 1] = y * (1 + 0.2 * Math.sin(t));
-        out[3 * v + 2] = s * (x * Math.sin(a) + z * Math.cos(a));
-    }
-}
-
-/** @param {{backend?: 'webgl2'|'webgpu'}} [options] */
+/** @param {{backend?: 'webgl2'|'webgpu', width?: number, height?: number}} [options] */
 async function init(options = {}) {
     const canvas = /** @type {HTMLCanvasElement} */ (document.getElementById('canvas'));
-    app = await startApp(canvas, { backend: options.backend });
+    app = await startApp(canvas, { backend: options.backend, width: options.width, height: options.height });
     const b = describeBackend(app);
     return { engine: `${b.engine} ${b.engine_version}`, device: b.device, renderer: b.renderer, userAgent: b.user_agent, cores: navigator.hardwareConcurrency };
 }
@@ -251,5 +169,96 @@ async function sort(n, law, opts = {}) {
     };
 }
 
-/** @type {any} */ (window).gsvBench = { init, run, sort };
+/**
+ * The remap and the deformed sort against the engine's own splat pass, interleaved in one
+ * rendered scene (bench/engines.mjs). Each round draws three kinds of frame, in turn:
+ *   static:   one rendered frame of the splats as they are (no setVertices): the engine's own
+ *             per-frame work (its update and the draw of every splat; nothing to sort, the
+ *             camera stands still);
+ *   remapped: setVertices (a new pose, sortDeformed off) then one rendered frame: the vertex
+ *             upload and the engine's work-buffer copy of every splat through the remap chunk,
+ *             then the same draw; remapMs = this frame minus the static frame of its round;
+ *   sorted:   setVertices with sortDeformed on: the deformed means computed into the engine's
+ *             sort centres (CPU) and the engine's sort of them in its worker ('gsplat:sorted'
+ *             reports its time); sortMs = the two together, the order arriving some frames later.
+ * A frame is timed from the engine's 'update' (the tick's start, after requestAnimationFrame
+ * handed it over, so the wait for the display's refresh is not counted) to a 1-pixel readback
+ * of the canvas after 'frameend', which waits for the GPU (SwiftShader: the CPU) to finish it.
+ * @param {number} n @param {{rounds?: number}} [opts]
+ */
+async function engineFrames(n, opts = {}) {
+    const a = /** @type {any} */ (app);
+    const device = a.graphicsDevice;
+    const gl = device.gl;
+    const prim = synthetic(n, 'affine');
+    const resource = engineResource(prim);
+    const gpu = new AnchorGpuData(device, resource, prim, 'synthetic');
+    const entity = new pc.Entity('splats');
+    entity.addComponent('gsplat', { unified: true });
+    /** @type {any} */ (entity.gsplat).resource = resource;
+    a.root.addChild(entity);
+    if (!a.root.findByName('bench camera')) {
+        const camera = new pc.Entity('bench camera');
+        camera.addComponent('camera', { clearColor: new pc.Color(0, 0, 0), fov: 50 });
+        camera.setPosition(0, 0, 7);
+        a.root.addChild(camera);
+        a.autoRender = false;
+        a.start();
+    }
+    const splat = new AnchoredSplat(gpu, entity, [entity.gsplat], null, null);
+    let sorts = 0, lastSortTime = 0;
+    const onSorted = (/** @type {number} */ t) => { sorts++; lastSortTime = t; };
+    a.scene.on('gsplat:sorted', onSorted);
+    const pixel = new Uint8Array(4);
+    /** one rendered frame, `before` run at its start; resolves to its time in ms @param {() => void} [before] */
+    const frame = (before) => new Promise((resolve) => {
+        let t0 = 0;
+        a.once('update', () => { t0 = performance.now(); if (before) before(); });
+        a.once('frameend', () => {
+            device.setFramebuffer(null);
+            gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, pixel);
+            resolve(performance.now() - t0);
+        });
+        a.renderNextFrame = true;
+    });
+    const rest = prim.anchorMesh.vertices;
+    const verts = new Float32Array(rest.length);
+    /** wait for the engine's sort of the centres handed over (at most 30 s of frames) @param {number} before */
+    const sorted = async (before) => {
+        const t = performance.now();
+        while (sorts === before && performance.now() - t < 30000) await frame();
+        return sorts !== before;
+    };
+    // warm-up: shaders, the first sort, the first remapped copy
+    splat.sortDeformed = true;
+    for (let i = 0; i < 2; ++i) {
+        deform(rest, verts, 0.7 * i);
+        const before = sorts;
+        await frame(() => splat.setVertices(verts));
+        await sorted(before);
+    }
+    /** @type {{baseMs: number, remapFrameMs: number, remapMs: number, centresMs: number, workerSortMs: number, sortMs: number}[]} */
+    const rows = [];
+    const rounds = opts.rounds ?? 5;
+    for (let i = 0; i < rounds; ++i) {
+        const baseMs = await frame();
+        deform(rest, verts, 0.37 * i + 0.1);
+        splat.sortDeformed = false;
+        const remapFrameMs = await frame(() => splat.setVertices(verts));
+        splat.sortDeformed = true;
+        deform(rest, verts, 0.37 * i + 0.2);
+        const before = sorts;
+        let centresMs = NaN;
+        await frame(() => { splat.setVertices(verts); centresMs = splat.lastSortMs; });
+        if (!await sorted(before)) throw new Error(`no sort reported within 30 s (${n} splats)`);
+        rows.push({ baseMs, remapFrameMs, remapMs: remapFrameMs - baseMs, centresMs, workerSortMs: lastSortTime, sortMs: centresMs + lastSortTime });
+    }
+    a.scene.off('gsplat:sorted', onSorted);
+    splat.destroy();
+    entity.destroy();
+    resource.destroy();
+    return summarize('PlayCanvas', n, rows);
+}
+
+/** @type {any} */ (window).gsvBench = { init, run, sort, engineFrames };
 /** @type {any} */ (window).gsvReady = true;
