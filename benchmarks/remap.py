@@ -8,7 +8,9 @@ show what the order is worth. ``--quick``: 100k splats on a 10k-face grid.
 Floor. The bytes a remap must stream per splat (read the per-splat anchors, write the mean and
 the six covariance entries; per-face data stay in cache and are not counted) divided by the copy
 bandwidth measured in the same run with the same thread count (a numba parallel copy of a
-256 MiB float32 array; bytes read + bytes written). The fast path's ``local`` splat stream is
+256 MiB float32 array; bytes read + bytes written): the median of every copy timed in the run
+at that thread count, one before and one after each fast-path timing besides the first, so
+that the share of the floor does not move with one copy's luck. The fast path's ``local`` splat stream is
 4 (face) + 48 (b1, b2, d, L = R_l S_l) read + 12 + 24 written = 88 bytes; ``games`` is 16 + 36.
 The numpy reference reads the stored anchors (face 4, barycentrics 8, offset 4, rotation 16,
 scale 12 = 44 bytes; ``games`` 16) and writes float64 means and 3×3 covariances; its floor uses
@@ -107,6 +109,23 @@ def copy_bandwidth(threads: int, mib: int = 256, min_quiet: int = 0,
     finally:
         numba.set_num_threads(before)
     return 2 * x.nbytes / t.median / 1e9, t.as_dict()
+
+
+def copy_sample(threads: int, mib: int = 256) -> float:
+    """One short copy measurement (GB/s, median of 5 copies) on ``threads`` threads: the
+    samples taken between the remap timings that the floor is the median of."""
+    import numba
+
+    _copy = _copy_kernel()
+    x = np.ones(mib * 2**20 // 4, np.float32)
+    y = np.empty_like(x)
+    before = numba.get_num_threads()
+    numba.set_num_threads(threads)
+    try:
+        t = measure(lambda: _copy(x, y), repeat=5, batches=1, warmup=1)
+    finally:
+        numba.set_num_threads(before)
+    return 2 * x.nbytes / t.median / 1e9
 
 
 def numpy_copy_bandwidth(mib: int = 256) -> float:
@@ -240,10 +259,12 @@ def run(quick: bool = False, log=print) -> dict:
 
         threads_all = numba.config.NUMBA_NUM_THREADS
         bw = {}
+        samples: dict[int, list[float]] = {}   # copy bandwidths, interleaved with the remaps
         for th in sorted({1, threads_all}):
             gbs, info = copy_bandwidth(th, 64 if quick else 256, 0 if quick else 3,
                                        0 if quick else 120)
             bw[th] = gbs
+            samples[th] = [gbs]
             result.setdefault("bandwidth", []).append({"threads": th, "gb_s": gbs, **info})
         result["numpy_copy_gb_s"] = numpy_copy_bandwidth(64 if quick else 256)
     else:
@@ -290,9 +311,11 @@ def run(quick: bool = False, log=print) -> dict:
             try:
                 reps = 10 if quick else 40
                 # The headline rows wait (up to a few minutes) for quiet moments on a busy machine.
+                samples[th].append(copy_sample(th, 64 if quick else 256))
                 t = measure(lambda: fast.remap(verts), repeat=reps, batches=3,
                             retry_contended=1 if quick else 6, min_quiet=0 if quick else 3,
                             max_wait_s=0 if quick else (240 if case == "local/affine" else 120))
+                samples[th].append(copy_sample(th, 64 if quick else 256))
                 result["rows"].append(_row(case, "fast path (numba, float32)", th, n, t,
                                            fast.bytes_per_splat, bw[th], check=check))
                 result["rows"][-1]["impl"] = _impl_name(fast)
@@ -352,6 +375,21 @@ def run(quick: bool = False, log=print) -> dict:
             anchors = anchoring = None
             _scaling_rows(result, mesh, verts, threads_all, bw, quick)
         fast = out = None  # release the buffers before the next case
+    if have_numba:
+        # The floor: the median of every copy measured in this run at the row's thread count
+        # (taken before and after each fast-path timing), not one copy: a single measurement
+        # moved the share of the floor by ±15 points between runs.
+        median_bw = {th: float(np.median(v)) for th, v in samples.items()}
+        result["copy_samples"] = {str(th): v for th, v in samples.items()}
+        for entry in result.get("bandwidth", []):
+            entry["gb_s_single"] = entry["gb_s"]
+            entry["gb_s"] = median_bw.get(entry["threads"], entry["gb_s"])
+            entry["samples"] = len(samples.get(entry["threads"], []))
+        for row in result["rows"]:
+            gbs = median_bw.get(row["threads"])
+            if gbs:
+                row["floor_ms"] = row["bytes_per_splat"] * row["n"] / (gbs * 1e9) * 1e3
+                row["floor_fraction"] = row["floor_ms"] / row["ms"] if row["ms"] else float("nan")
     result["seconds"] = time.perf_counter() - t_start
     target = [r for r in result["rows"] if r["case"] == "local/affine" and r["impl"].startswith("fast path (")
               and r["threads"] == threads_all and r["order"] == "by face"]

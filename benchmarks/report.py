@@ -258,8 +258,10 @@ def _remap_md(remap: dict) -> list[str]:
     L.append("")
     bw = remap.get("bandwidth", [])
     if bw:
-        L.append("Copy bandwidth measured in this run (numba parallel copy, bytes read + written): "
+        L.append("Copy bandwidth measured in this run (numba parallel copy, bytes read + written; the "
+                 "median of the copies timed before and after each fast-path timing, the floor of every row): "
                  + "; ".join(f"{b['threads']} thread{'s' if b['threads'] > 1 else ''}: **{b['gb_s']:.1f} GB/s**"
+                             + (f" (median of {b['samples']})" if b.get("samples") else "")
                              + (f" {DAGGER}" if b.get("contended") else "") for b in bw)
                  + (f"; numpy `copyto` 1 thread: {remap['numpy_copy_gb_s']:.1f} GB/s" if "numpy_copy_gb_s" in remap else "")
                  + ".")
@@ -276,6 +278,17 @@ def _remap_md(remap: dict) -> list[str]:
                  f"**{100 * h['floor_fraction']:.0f}% of the bandwidth floor**."
                  + (f" {DAGGER} measured while other processes kept the CPU busy." if h["contended"] else ""))
         L.append("")
+        goals = [f"- share of the copy floor, `local`/`affine`, {h['threads']} threads: "
+                 f"**{100 * h['floor_fraction']:.0f} %** (goal ≥ 60 %: "
+                 + ("met" if h["floor_fraction"] >= 0.6 else
+                    f"missed by {100 * (1 - h['floor_fraction'] / 0.6):.0f} %") + ")"]
+        if "scaling_ratio" in remap:
+            ratio = remap["scaling_ratio"]
+            goals.append(f"- per-splat cost of a tenth of the splats on the same mesh over the full "
+                         f"count: **{ratio:.2f}×** (goal ≤ 1.3: "
+                         + ("met" if ratio <= 1.3 else f"missed by {100 * (ratio / 1.3 - 1):.0f} %")
+                         + ")")
+        L += goals + [""]
     rows = []
     for r in remap["rows"]:
         rows.append([r["case"], r["impl"], r["threads"], r["order"],
