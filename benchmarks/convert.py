@@ -428,7 +428,8 @@ def _goal(what: str, value: float, limit: float, low: float | None = None) -> st
 
 def scaling_markdown(scale: list[dict], n_faces: int) -> list[str]:
     """The scaling table and its goals: anchored ≤ 1.5× plain at every size, with the mesh as
-    PLY and as OBJ; time per splat flat (± 20 %) from 1M to 4M; peak RSS ≤ 3× the input."""
+    PLY and as OBJ; time per splat from 1M to 4M not growing by more than 20 %; peak RSS ≤ 3×
+    the input."""
     if not scale:
         return []
     rounds = scale[0].get("rounds", 1)
@@ -463,8 +464,12 @@ def scaling_markdown(scale: list[dict], n_faces: int) -> list[str]:
         for key, what in (("plain", "`--plain`"), ("anchored", "anchored"),
                           ("validate", "`gsverse-validate`")):
             if f"{key}_us_per_splat" in a and f"{key}_us_per_splat" in b:
-                goals.append(_goal(f"{what} time per splat, 4M / 1M",
-                                   b[f"{key}_us_per_splat"] / a[f"{key}_us_per_splat"], 1.2, 0.8))
+                # flat means no growth per splat: below 0.8 the process's fixed costs (start-up,
+                # imports, numba's set-up) are spread over four times the splats
+                ratio = b[f"{key}_us_per_splat"] / a[f"{key}_us_per_splat"]
+                goals.append(_goal(f"{what} time per splat, 4M / 1M", ratio, 1.2)
+                             + (" (lower at 4M: the fixed costs of a process spread over more "
+                                "splats)" if ratio < 0.8 else ""))
     # (below 1M splats the interpreter and the libraries outweigh the input)
     worst = max(((r[k] / r["input_mb"], r["n_splats"]) for r in scale for k in r
                  if k.endswith("_peak_rss_mb") and r["n_splats"] >= 1_000_000), default=None)
