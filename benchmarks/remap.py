@@ -94,7 +94,8 @@ def _copy_kernel():
 
 
 def copy_bandwidth(threads: int, mib: int = 256, min_quiet: int = 0,
-                   max_wait_s: float = 0.0) -> tuple[float, dict]:
+                   max_wait_s: float = 0.0, *, batches: int = 3,
+                   retry_contended: int = 3) -> tuple[float, dict]:
     """GB/s of a numba parallel copy on ``threads`` threads ((read + write) / s)."""
     import numba
 
@@ -104,28 +105,17 @@ def copy_bandwidth(threads: int, mib: int = 256, min_quiet: int = 0,
     before = numba.get_num_threads()
     numba.set_num_threads(threads)
     try:
-        t = measure(lambda: _copy(x, y), repeat=5, batches=3, retry_contended=3,
-                    min_quiet=min_quiet, max_wait_s=max_wait_s)
+        t = measure(lambda: _copy(x, y), repeat=5, batches=batches,
+                    retry_contended=retry_contended, min_quiet=min_quiet, max_wait_s=max_wait_s)
     finally:
         numba.set_num_threads(before)
     return 2 * x.nbytes / t.median / 1e9, t.as_dict()
 
 
 def copy_sample(threads: int, mib: int = 256) -> float:
-    """One short copy measurement (GB/s, median of 5 copies) on ``threads`` threads: the
-    samples taken between the remap timings that the floor is the median of."""
-    import numba
-
-    _copy = _copy_kernel()
-    x = np.ones(mib * 2**20 // 4, np.float32)
-    y = np.empty_like(x)
-    before = numba.get_num_threads()
-    numba.set_num_threads(threads)
-    try:
-        t = measure(lambda: _copy(x, y), repeat=5, batches=1, warmup=1)
-    finally:
-        numba.set_num_threads(before)
-    return 2 * x.nbytes / t.median / 1e9
+    """One short copy measurement (GB/s, median of 5 copies, one batch) on ``threads``
+    threads: the samples taken between the remap timings that the floor is the median of."""
+    return copy_bandwidth(threads, mib, batches=1, retry_contended=0)[0]
 
 
 def numpy_copy_bandwidth(mib: int = 256) -> float:

@@ -108,16 +108,13 @@ async function run(n, law, opts = {}) {
 }
 
 /**
- * The cost of ordering splats by their deformed positions, per frame, in a rendered scene:
- * `setVertices` computes the deformed means into the engine's sort centres (`centresMs`, CPU),
- * the engine sends them to its sort worker and sorts (`sortMs`, the worker's own time from
- * 'gsplat:sorted'), and the sorted order arrives `latencyMs` after setVertices. The same
- * frames with `sortDeformed = false` give the upload alone (`uploadMs`).
- * @param {number} n @param {'affine'|'rigid'|'games'} law @param {{frames?: number}} [opts]
+ * The synthetic splats `prim` in the rendered scene (the bench camera added and the app started
+ * the first time), anchored, with the engine's sorts counted in `sorting` ('gsplat:sorted':
+ * how many, and the last one's time); `close()` takes them out again.
+ * @param {any} prim
  */
-async function sort(n, law, opts = {}) {
+function sceneSplats(prim) {
     const a = /** @type {any} */ (app);
-    const prim = synthetic(n, law);
     const resource = engineResource(prim);
     const gpu = new AnchorGpuData(a.graphicsDevice, resource, prim, 'synthetic');
     const entity = new pc.Entity('splats');
@@ -133,9 +130,30 @@ async function sort(n, law, opts = {}) {
         a.start();
     }
     const splat = new AnchoredSplat(gpu, entity, [entity.gsplat], null, null);
-    let sorts = 0, lastSortTime = 0;
-    const onSorted = (/** @type {number} */ t) => { sorts++; lastSortTime = t; };
+    const sorting = { sorts: 0, lastSortTime: 0 };
+    const onSorted = (/** @type {number} */ t) => { sorting.sorts++; sorting.lastSortTime = t; };
     a.scene.on('gsplat:sorted', onSorted);
+    const close = () => {
+        a.scene.off('gsplat:sorted', onSorted);
+        splat.destroy();
+        entity.destroy();
+        resource.destroy();
+    };
+    return { splat, sorting, close };
+}
+
+/**
+ * The cost of ordering splats by their deformed positions, per frame, in a rendered scene:
+ * `setVertices` computes the deformed means into the engine's sort centres (`centresMs`, CPU),
+ * the engine sends them to its sort worker and sorts (`sortMs`, the worker's own time from
+ * 'gsplat:sorted'), and the sorted order arrives `latencyMs` after setVertices. The same
+ * frames with `sortDeformed = false` give the upload alone (`uploadMs`).
+ * @param {number} n @param {'affine'|'rigid'|'games'} law @param {{frames?: number}} [opts]
+ */
+async function sort(n, law, opts = {}) {
+    const a = /** @type {any} */ (app);
+    const prim = synthetic(n, law);
+    const { splat, sorting, close } = sceneSplats(prim);
     const frame = () => new Promise((resolve) => { a.once('frameend', () => resolve(undefined)); a.renderNextFrame = true; });
     const rest = prim.anchorMesh.vertices;
     const verts = new Float32Array(rest.length);
@@ -144,23 +162,20 @@ async function sort(n, law, opts = {}) {
     const count = opts.frames ?? 6;
     for (let i = 0; i < count + 1; ++i) {
         deform(rest, verts, 0.7 * i);
-        const before = sorts;
+        const before = sorting.sorts;
         const t0 = performance.now();
         splat.setVertices(verts);
         const centresMs = splat.lastSortMs;
         const t1 = performance.now();
-        while (sorts === before && performance.now() - t1 < 30000) await frame();
+        while (sorting.sorts === before && performance.now() - t1 < 30000) await frame();
         const latencyMs = performance.now() - t0;
         splat.sortDeformed = false;
         splat.setVertices(verts);
         const uploadMs = splat.lastRemapMs;
         splat.sortDeformed = true;
-        if (i > 0) rows.push({ centresMs, sortMs: lastSortTime, latencyMs, uploadMs });   // frame 0 warms up
+        if (i > 0) rows.push({ centresMs, sortMs: sorting.lastSortTime, latencyMs, uploadMs });   // frame 0 warms up
     }
-    a.scene.off('gsplat:sorted', onSorted);
-    splat.destroy();
-    entity.destroy();
-    resource.destroy();
+    close();
     const med = (/** @type {number[]} */ x) => x.slice().sort((p, q) => p - q)[Math.floor(x.length / 2)];
     return {
         n, law, frames: rows.length,
@@ -191,24 +206,7 @@ async function engineFrames(n, opts = {}) {
     const device = a.graphicsDevice;
     const gl = device.gl;
     const prim = synthetic(n, 'affine');
-    const resource = engineResource(prim);
-    const gpu = new AnchorGpuData(device, resource, prim, 'synthetic');
-    const entity = new pc.Entity('splats');
-    entity.addComponent('gsplat', { unified: true });
-    /** @type {any} */ (entity.gsplat).resource = resource;
-    a.root.addChild(entity);
-    if (!a.root.findByName('bench camera')) {
-        const camera = new pc.Entity('bench camera');
-        camera.addComponent('camera', { clearColor: new pc.Color(0, 0, 0), fov: 50 });
-        camera.setPosition(0, 0, 7);
-        a.root.addChild(camera);
-        a.autoRender = false;
-        a.start();
-    }
-    const splat = new AnchoredSplat(gpu, entity, [entity.gsplat], null, null);
-    let sorts = 0, lastSortTime = 0;
-    const onSorted = (/** @type {number} */ t) => { sorts++; lastSortTime = t; };
-    a.scene.on('gsplat:sorted', onSorted);
+    const { splat, sorting, close } = sceneSplats(prim);
     const pixel = new Uint8Array(4);
     /** one rendered frame, `before` run at its start; resolves to its time in ms @param {() => void} [before] */
     const frame = (before) => new Promise((resolve) => {
@@ -226,14 +224,14 @@ async function engineFrames(n, opts = {}) {
     /** wait for the engine's sort of the centres handed over (at most 30 s of frames) @param {number} before */
     const sorted = async (before) => {
         const t = performance.now();
-        while (sorts === before && performance.now() - t < 30000) await frame();
-        return sorts !== before;
+        while (sorting.sorts === before && performance.now() - t < 30000) await frame();
+        return sorting.sorts !== before;
     };
     // warm-up: shaders, the first sort, the first remapped copy
     splat.sortDeformed = true;
     for (let i = 0; i < 2; ++i) {
         deform(rest, verts, 0.7 * i);
-        const before = sorts;
+        const before = sorting.sorts;
         await frame(() => splat.setVertices(verts));
         await sorted(before);
     }
@@ -247,16 +245,13 @@ async function engineFrames(n, opts = {}) {
         const remapFrameMs = await frame(() => splat.setVertices(verts));
         splat.sortDeformed = true;
         deform(rest, verts, 0.37 * i + 0.2);
-        const before = sorts;
+        const before = sorting.sorts;
         let centresMs = NaN;
         await frame(() => { splat.setVertices(verts); centresMs = splat.lastSortMs; });
         if (!await sorted(before)) throw new Error(`no sort reported within 30 s (${n} splats)`);
-        rows.push({ baseMs, remapFrameMs, remapMs: remapFrameMs - baseMs, centresMs, workerSortMs: lastSortTime, sortMs: centresMs + lastSortTime });
+        rows.push({ baseMs, remapFrameMs, remapMs: remapFrameMs - baseMs, centresMs, workerSortMs: sorting.lastSortTime, sortMs: centresMs + sorting.lastSortTime });
     }
-    a.scene.off('gsplat:sorted', onSorted);
-    splat.destroy();
-    entity.destroy();
-    resource.destroy();
+    close();
     return summarize('PlayCanvas', n, rows);
 }
 
