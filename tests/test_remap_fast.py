@@ -291,6 +291,48 @@ def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
         numba.set_num_threads(threads)
 
 
+@needs_numba
+def test_vectorised_face_step_gives_the_bits_of_the_scalar_rows(mesh, anchorings):
+    """The affine one-pass kernel computes its faces FACE_BLOCK at a time in a vectorised loop
+    (compiled_runs._affine_rows); the two passes use the scalar rows. Same bits on every
+    deformation (collapsed faces: a_c = 0; inverted; far from the origin; float32 and float64
+    vertices), on faces degenerate at rest (recomputed by the scalar row) and on blocks cut
+    short by a run plan's small chunks."""
+    from gsverse_format.remapping import compiled_runs as runs
+
+    rng = np.random.default_rng(21)
+    # A mesh with faces degenerate at rest among regular ones: every fifth face collinear.
+    v = mesh.vertices.astype(np.float64)
+    faces = mesh.faces.copy()
+    faces[::5, 2] = faces[::5, 1]                 # two equal corners: zero rest area
+    deg_mesh = TriangleMesh(v.astype(np.float32), faces)
+    base = anchorings["affine"].anchors
+    for m in (mesh, deg_mesh):
+        anchors = base.subset(np.argsort(base.face_index, kind="stable"))
+        sorted_ = Anchoring(m, anchors)
+        one = rf.FastRemapper(sorted_, backend="numba")
+        assert one.one_pass and one.law == "affine" and not one.rotations
+        perm = rng.permutation(len(anchors))
+        two = rf.FastRemapper(Anchoring(m, anchors.subset(perm)), backend="numba")
+        assert not two.one_pass
+        small = rf.FastRemapper(sorted_, backend="numba")
+        small._plan = runs.plan_runs(small._face, m.face_count, chunk=runs.FACE_BLOCK + 7)
+        small._table = np.zeros((small._plan.runs, small._table.shape[1]), np.float32)
+        for name, cur in _deformations(m).items():
+            for dtype in (np.float64, np.float32):
+                cur_t = np.ascontiguousarray(cur, dtype=dtype)
+                first = one.remap(cur_t).copy()
+                shuffled = two.remap(cur_t)
+                again = small.remap(cur_t)
+                for field in ("means", "cov6"):
+                    got = getattr(first, field)
+                    assert np.array_equal(getattr(shuffled, field), got[perm], equal_nan=True), (
+                        name, dtype, field)
+                    assert np.array_equal(getattr(again, field), got, equal_nan=True), (
+                        name, dtype, field)
+        _check_against_reference(sorted_, None, one.remap())
+
+
 def test_run_plan():
     from gsverse_format.remapping.compiled_runs import plan_runs
 
