@@ -206,13 +206,15 @@ def _busy_rows(result: dict, mesh, verts, anchoring, threads_all: int, bw: dict,
 
 
 def _scaling_rows(result: dict, mesh, verts, threads_all: int, bw: dict, quick: bool) -> None:
-    """The fast path at 0.1×, 1× and 4× the workload's splat count on the same mesh."""
+    """The fast path at 0.1×, 1× and 4× the workload's splat count on the same mesh, and the
+    split of its time into a cost per face computed and a cost per splat (:func:`face_split`)."""
     import numba
 
     base = result["n_splats"]
     numba.set_num_threads(threads_all)
     for n in (base // 10, base, 4 * base):
-        anchoring = Anchoring(mesh, random_anchors(mesh, n, "local/affine", seed=3))
+        anchors = random_anchors(mesh, n, "local/affine", seed=3)
+        anchoring = Anchoring(mesh, anchors)
         fast = FastRemapper(anchoring, backend="numba")
         fast.remap(verts)
         reps = max(5, min(100, int(40 * base / n))) if not quick else 10
@@ -221,14 +223,50 @@ def _scaling_rows(result: dict, mesh, verts, threads_all: int, bw: dict, quick: 
         row = _row(f"local/affine, {n:,} splats", _impl_name(fast), threads_all, n, t,
                    fast.bytes_per_splat, bw[threads_all], order="by face (scaling)")
         row["scaling"] = True
+        row["faces_used"] = int(np.unique(anchors.face_index).shape[0])
         result["rows"].append(row)
-        fast = anchoring = None
+        fast = anchoring = anchors = None
     rows = {r["n"]: r for r in result["rows"] if r.get("scaling")}
     small, mid = rows.get(base // 10), rows.get(base)
     if small and mid:
         result["scaling_ratio"] = small["ms_per_1M"] / mid["ms_per_1M"]
         result["notes"].append(f"{base // 10:,} splats cost {result['scaling_ratio']:.2f}× per "
-                               f"splat what {base:,} do (goal: well under 2×)")
+                               f"splat what {base:,} do (goal ≤ 1.3×)")
+        split = face_split(list(rows.values()))
+        if split:
+            result["face_split"] = split
+            result["notes"].append(
+                f"least squares over the scaling rows: {split['face_ns']:.1f} ns per face computed "
+                f"and {split['splat_ns']:.1f} ns per splat ({threads_all} threads, wall time × "
+                f"threads); with {split['small_faces_per_splat']:.2f} faces a splat at "
+                f"{base // 10:,} splats and {split['mid_faces_per_splat']:.2f} at {base:,}, a ratio "
+                f"of 1.3 needs a face to cost at most {split['face_budget']:.2f} splats "
+                f"(it costs {split['face_ns'] / split['splat_ns']:.2f})")
+
+
+def face_split(rows: list[dict]) -> dict | None:
+    """Split the scaling rows' times into a cost per face computed and a cost per splat.
+
+    The one-pass remap computes every face that carries a splat once a frame, then every splat,
+    so a frame takes about ``faces_used · f + n · s``; a least-squares fit over the rows (times
+    the thread count, so the costs are in core time) gives f and s. The per-splat ratio of
+    ``n₁`` splats over ``n₂`` on the same mesh is then ``(φ₁ f + s) / (φ₂ f + s)`` with
+    ``φ = faces_used / n``, and a ratio of 1.3 needs ``f ≤ 0.3 s / (φ₁ − 1.3 φ₂)`` (the
+    *face budget*, in splats)."""
+    rows = sorted((r for r in rows if r.get("faces_used")), key=lambda r: r["n"])
+    if len(rows) < 2:
+        return None
+    a = np.array([[r["faces_used"], r["n"]] for r in rows], np.float64)
+    t = np.array([r["ms"] * 1e6 * r["threads"] for r in rows], np.float64)      # core ns
+    (f, s), *_ = np.linalg.lstsq(a, t, rcond=None)
+    if not (f > 0 and s > 0):
+        return None
+    phi_small = rows[0]["faces_used"] / rows[0]["n"]
+    phi_mid = rows[1]["faces_used"] / rows[1]["n"]
+    denom = phi_small - 1.3 * phi_mid
+    return {"face_ns": float(f), "splat_ns": float(s), "small_faces_per_splat": phi_small,
+            "mid_faces_per_splat": phi_mid,
+            "face_budget": float(0.3 / denom) if denom > 0 else float("inf")}
 
 
 def run(quick: bool = False, log=print) -> dict:

@@ -288,6 +288,16 @@ def _remap_md(remap: dict) -> list[str]:
                          f"count: **{ratio:.2f}×** (goal ≤ 1.3: "
                          + ("met" if ratio <= 1.3 else f"missed by {100 * (ratio / 1.3 - 1):.0f} %")
                          + ")")
+            split = remap.get("face_split")
+            if split:
+                goals.append(
+                    f"- where the ratio comes from (least squares over the scaling rows, core "
+                    f"time): **{split['face_ns']:.1f} ns per face** computed, "
+                    f"**{split['splat_ns']:.1f} ns per splat**; a tenth of the splats touches "
+                    f"{split['small_faces_per_splat']:.2f} faces a splat against "
+                    f"{split['mid_faces_per_splat']:.2f}, so 1.3× needs a face to cost at most "
+                    f"{split['face_budget']:.2f} splats; it costs "
+                    f"{split['face_ns'] / split['splat_ns']:.2f}")
         L += goals + [""]
     rows = []
     for r in remap["rows"]:

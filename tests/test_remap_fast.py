@@ -342,6 +342,7 @@ def test_run_plan():
     assert plan.face.tolist() == [0, 2, 2, 5, 5]
     assert plan.run_of.tolist() == [0, 0, 0, 1, 2, 3, 3, 3, 4, 4]
     assert plan.chunk.tolist() == [0, 2, 4, 5] and plan.size == 4
+    assert plan.start.dtype == np.uint32 and plan.start.tolist() == [0, 3, 4, 5, 8, 10]
     assert plan_runs(np.array([0, 1, 0, 1, 0, 1], np.int32), 2, chunk=4) is None
     empty = plan_runs(np.zeros(0, np.int32), 3)
     assert empty.runs == 0 and empty.chunk.tolist() == [0]

@@ -91,18 +91,19 @@ def _fma(typingctx, a, b, c):
     return sig, codegen
 
 @njit(cache=True, inline="always")
-def _local_splat(c, x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
-                 a00, a01, a02, a10, a11, a12, a20, a21, a22):
+def local_splat(splat, face):
     """Mean and the six covariance entries of one ``local`` splat (float32, explicit FMAs).
 
-    ``c``: b1, b2, d, L row-major; the rest: the face's v0, e1, e2, the scaled normal m and A."""
-    b1, b2, d = c[0], c[1], c[2]
+    ``splat``: the splat's constants b1, b2, d and L = R_l S_l row-major (a 12-tuple);
+    ``face``: its face's v0, e1, e2, the scaled normal m and A row-major (a 21-tuple, the first
+    21 columns of a table row). Tuples, because a call with more than 30 arguments compiles
+    to a ``*args`` call, which numba cannot inline."""
+    b1, b2, d, l00, l01, l02, l10, l11, l12, l20, l21, l22 = splat
+    (x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
+     a00, a01, a02, a10, a11, a12, a20, a21, a22) = face
     mx = _fma(d, nx, _fma(b2, e2x, _fma(b1, e1x, x0)))
     my = _fma(d, ny, _fma(b2, e2y, _fma(b1, e1y, y0)))
     mz = _fma(d, nz, _fma(b2, e2z, _fma(b1, e1z, z0)))
-    l00, l01, l02 = c[3], c[4], c[5]
-    l10, l11, l12 = c[6], c[7], c[8]
-    l20, l21, l22 = c[9], c[10], c[11]
     m00 = _fma(a02, l20, _fma(a01, l10, a00 * l00))
     m01 = _fma(a02, l21, _fma(a01, l11, a00 * l01))
     m02 = _fma(a02, l22, _fma(a01, l12, a00 * l02))
@@ -336,7 +337,7 @@ def _games_face(vertices, faces, f):
 def _games_splat(a1, a2, rho, x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
                  ux, uy, uz, vx, vy, vz, t1, t2):
     """Mean, the six covariance entries and the three scales of one ``games`` splat (float32,
-    explicit FMAs: the rounding is fixed by the source, as in :func:`_local_splat`)."""
+    explicit FMAs: the rounding is fixed by the source, as in :func:`local_splat`)."""
     zero = np.float32(0.0)
     mx = _fma(a2, e2x, _fma(a1, e1x, x0))
     my = _fma(a2, e2y, _fma(a1, e1y, y0))
@@ -410,9 +411,11 @@ def local_face_row(vertices, faces, rest, rigid, f, row, qtab, qi, want_q):
 @njit(cache=True, inline="always")
 def local_splat_row(consts, t, means, cov6, i):
     """Mean and covariance of ``local`` splat ``i`` from its face's table row ``t``."""
-    mx, my, mz, s00, s01, s02, s11, s12, s22 = _local_splat(
-        consts[i], t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
-        t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19], t[20])
+    c = consts[i]
+    mx, my, mz, s00, s01, s02, s11, s12, s22 = local_splat(
+        (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11]),
+        (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
+         t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19], t[20]))
     means[i, 0] = mx
     means[i, 1] = my
     means[i, 2] = mz

@@ -245,7 +245,8 @@ class FastRemapper:
                              workers)
             else:
                 r.local_runs(v, self._faces, self._rest_table, self.law == "rigid", plan.face,
-                             plan.run_of, plan.chunk, self._consts, self._table, self._qface,
+                             plan.run_of, plan.start, plan.chunk, self._consts, self._table,
+                             self._qface,
                              out.means, out.cov6, self._qlocal, self._slocal, rotations, scales,
                              plan.size, workers)
             return out
