@@ -292,15 +292,15 @@ def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
 
 
 @needs_numba
-@pytest.mark.parametrize("law", ["affine", "rigid"])
+@pytest.mark.parametrize("law", ["affine", "rigid", "games"])
 def test_vectorised_loops_give_the_bits_of_the_scalar_rows(mesh, anchorings, law):
-    """The one-pass kernel without rigid pairs runs two vectorised loops: the affine law's
-    faces FACE_BLOCK at a time (compiled_runs._affine_rows), and the splats of every run of at
-    least SHORT_RUN splats (compiled_runs._local_run_splats); the two passes use the scalar
-    rows. Same bits on every deformation (collapsed faces: a_c = 0; inverted; far from the
-    origin; float32 and float64 vertices), on faces degenerate at rest (recomputed by the
-    scalar row), on runs of every length (about 12 splats a face here) and on blocks and runs
-    cut short by a run plan's small chunks."""
+    """The one-pass kernels without rotations and scales run vectorised loops: the affine law's
+    faces FACE_BLOCK at a time (compiled_runs._affine_rows), and the splats of every run of
+    at least SHORT_RUN splats (compiled_runs._local_run_splats, _games_run_splats); the two
+    passes use the scalar rows. Same bits on every deformation (collapsed faces: a_c = 0;
+    inverted; far from the origin; float32 and float64 vertices), on faces degenerate at
+    rest (recomputed by the scalar row), on runs of every length (about 12 splats a face
+    here) and on blocks and runs cut short by a run plan's small chunks."""
     from gsverse_format.remapping import compiled_runs as runs
 
     rng = np.random.default_rng(21)
@@ -311,12 +311,13 @@ def test_vectorised_loops_give_the_bits_of_the_scalar_rows(mesh, anchorings, law
     deg_mesh = TriangleMesh(v.astype(np.float32), faces)
     base = anchorings[law].anchors
     lengths = np.bincount(base.face_index)
-    assert lengths.max() >= 2 * runs.SHORT_RUN and 0 < lengths.min() < runs.SHORT_RUN
+    assert lengths.max() >= 2 * runs.SHORT_RUN and lengths[lengths > 0].min() < runs.SHORT_RUN
     for m in (mesh, deg_mesh):
         anchors = base.subset(np.argsort(base.face_index, kind="stable"))
         sorted_ = Anchoring(m, anchors)
         one = rf.FastRemapper(sorted_, backend="numba")
-        assert one.one_pass and one.law == law and not one.rotations
+        assert one.one_pass and not one.rotations
+        assert one.profile == "games" if law == "games" else one.law == law
         perm = rng.permutation(len(anchors))
         two = rf.FastRemapper(Anchoring(m, anchors.subset(perm)), backend="numba")
         assert not two.one_pass

@@ -334,7 +334,7 @@ def _games_face(vertices, faces, f):
 
 
 @njit(cache=True, inline="always")
-def _games_splat(a1, a2, rho, x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
+def games_splat(a1, a2, rho, x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
                  ux, uy, uz, vx, vy, vz, t1, t2):
     """Mean, the six covariance entries and the three scales of one ``games`` splat (float32,
     explicit FMAs: the rounding is fixed by the source, as in :func:`local_splat`)."""
@@ -453,7 +453,7 @@ def games_face_row(vertices, faces, f, row):
 @njit(cache=True, inline="always")
 def games_splat_row(consts, t, means, cov6, rotations, scales, i, want):
     """Mean and covariance (and with ``want`` rotation and scales) of ``games`` splat ``i``."""
-    mx, my, mz, c00, c01, c02, c11, c12, c22, s0, s1, s2 = _games_splat(
+    mx, my, mz, c00, c01, c02, c11, c12, c22, s0, s1, s2 = games_splat(
         consts[i, 0], consts[i, 1], consts[i, 2], t[0], t[1], t[2], t[3], t[4], t[5], t[6],
         t[7], t[8], t[9], t[10], t[11], t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19])
     means[i, 0] = mx

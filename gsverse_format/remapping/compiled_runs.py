@@ -52,8 +52,8 @@ from numba import njit, prange
 
 from ..backend import configure_numba
 from ..compiled_chunks import next_chunk
-from .compiled import (CHUNK, games_face_row, games_splat_span, local_face_row, local_splat,
-                       local_splat_row, local_splat_span)
+from .compiled import (CHUNK, games_face_row, games_splat, games_splat_row, games_splat_span,
+                       local_face_row, local_splat, local_splat_row, local_splat_span)
 
 configure_numba()
 
@@ -204,11 +204,11 @@ def _affine_rows(vertices, faces, rest, run_face, r0, r1, table, qrun, ws):
 def _local_run_splats(consts, t, means, cov6, first, count):
     """``local`` splats ``first .. first + count - 1`` of one run (no rigid pairs), its face's
     table row ``t`` read once before the loop; ``consts``, ``means`` and ``cov6`` flattened
-    (N·12, N·3, N·6). LLVM vectorises the loop over the run's splats, eight per AVX2 instruction, with
-    the explicit FMAs of :func:`local_splat` in every lane (so the bits of
+    (N·12, N·3, N·6). LLVM vectorises the loop over the run's splats, eight per AVX2
+    instruction, with the explicit FMAs of :func:`local_splat` in every lane (so the bits of
     :func:`~gsverse_format.remapping.compiled.local_splat_row`). It does so only because the
-    arrays are flat (a 2-D C array's row length is a run-time value: LLVM assumed it could be 1
-    and found dependences between a splat's outputs and the next splat's) and the index
+    arrays are flat (a 2-D C array's row length is a run-time value: LLVM assumed it could
+    be 1 and found dependences between a splat's outputs and the next splat's) and the index
     ``first + j`` is provably non-negative (``first`` uint32, ``j`` counted from 0): with a
     signed start numba's negative-index wrap-around makes the addresses non-affine."""
     face = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
@@ -279,17 +279,48 @@ def local_runs(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid:
                             local_splat_row(consts, table[r], means, cov6, first + j)
 
 
+@njit(cache=True, inline="always")
+def _games_run_splats(consts, t, means, cov6, first, count):
+    """``games`` splats ``first .. first + count - 1`` of one run (no rotations or scales):
+    the vectorised loop of :func:`_local_run_splats` for :func:`games_splat` (flat ``consts``
+    N·3, ``means`` N·3, ``cov6`` N·6; the bits of
+    :func:`~gsverse_format.remapping.compiled.games_splat_row`)."""
+    x0, y0, z0, e1x, e1y, e1z = t[0], t[1], t[2], t[3], t[4], t[5]
+    e2x, e2y, e2z, nx, ny, nz = t[6], t[7], t[8], t[9], t[10], t[11]
+    ux, uy, uz, vx, vy, vz = t[12], t[13], t[14], t[15], t[16], t[17]
+    t1, t2 = t[18], t[19]
+    for j in range(count):
+        i = first + j
+        k = i * 3
+        mx, my, mz, c00, c01, c02, c11, c12, c22, _, _, _ = games_splat(
+            consts[k], consts[k + 1], consts[k + 2], x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z,
+            nx, ny, nz, ux, uy, uz, vx, vy, vz, t1, t2)
+        means[k] = mx
+        means[k + 1] = my
+        means[k + 2] = mz
+        v = i * 6
+        cov6[v] = c00
+        cov6[v + 1] = c01
+        cov6[v + 2] = c02
+        cov6[v + 3] = c11
+        cov6[v + 4] = c12
+        cov6[v + 5] = c22
+
+
 @njit(parallel=True, cache=True)
 def games_runs(vertices: np.ndarray, faces: np.ndarray, run_face: np.ndarray,
-               run_of: np.ndarray, chunk_run: np.ndarray, consts: np.ndarray,
+               run_of: np.ndarray, run_start: np.ndarray, chunk_run: np.ndarray,
+               consts: np.ndarray,
                table: np.ndarray, means: np.ndarray, cov6: np.ndarray, rotations: np.ndarray,
                scales: np.ndarray, chunk: int, workers: int) -> None:
     """One-pass remap of the ``games`` profile (``rotations``/``scales`` written when they have
-    N rows); ``table`` as in :func:`local_runs`."""
+    N rows); ``table`` as in :func:`local_runs`. Without rotations and scales, runs of at least
+    :data:`SHORT_RUN` splats take the vectorised :func:`_games_run_splats`."""
     n = consts.shape[0]
     want = rotations.shape[0] == n and n > 0
     n_chunks = chunk_run.shape[0] - 1
     counter = np.zeros(1, np.int64)
+    flat_consts, flat_means, flat_cov6 = consts.reshape(-1), means.reshape(-1), cov6.reshape(-1)
     for _ in prange(workers):
         while True:
             c, start, stop = next_chunk(counter, chunk, n)
@@ -297,5 +328,17 @@ def games_runs(vertices: np.ndarray, faces: np.ndarray, run_face: np.ndarray,
                 break
             for r in range(chunk_run[c], chunk_run[c + 1]):
                 games_face_row(vertices, faces, run_face[r], table[r])
-            games_splat_span(run_of, consts, table, means, cov6, rotations, scales, start, stop,
-                             want)
+            if want:
+                games_splat_span(run_of, consts, table, means, cov6, rotations, scales, start,
+                                 stop, want)
+                continue
+            for r in range(chunk_run[c], chunk_run[c + 1]):
+                first = run_start[r]
+                count = np.int64(run_start[r + 1]) - np.int64(first)
+                if count >= SHORT_RUN:
+                    _games_run_splats(flat_consts, table[r], flat_means, flat_cov6, first,
+                                      count)
+                else:
+                    for j in range(count):
+                        games_splat_row(consts, table[r], means, cov6, rotations, scales,
+                                        first + j, False)

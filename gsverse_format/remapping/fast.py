@@ -240,15 +240,14 @@ class FastRemapper:
         if plan is not None:
             r = self._runs_kernels
             if self.profile == "games":
-                r.games_runs(v, self._faces, plan.face, plan.run_of, plan.chunk, self._consts,
-                             self._table, out.means, out.cov6, rotations, scales, plan.size,
-                             workers)
+                r.games_runs(v, self._faces, plan.face, plan.run_of, plan.start, plan.chunk,
+                             self._consts, self._table, out.means, out.cov6, rotations, scales,
+                             plan.size, workers)
             else:
                 r.local_runs(v, self._faces, self._rest_table, self.law == "rigid", plan.face,
                              plan.run_of, plan.start, plan.chunk, self._consts, self._table,
-                             self._qface,
-                             out.means, out.cov6, self._qlocal, self._slocal, rotations, scales,
-                             plan.size, workers)
+                             self._qface, out.means, out.cov6, self._qlocal, self._slocal,
+                             rotations, scales, plan.size, workers)
             return out
         self._face_pass(v)
         k = self._kernels
