@@ -33,6 +33,16 @@ there). Measured on the benchmark's 100k-face mesh, one thread, two-pass face ti
 26 ns a face scalar, 18 ns blocked (gather 4.7 ns, arithmetic 3.6 ns, the float64 → float32
 transposition into the rows 9.4 ns). The rigid law and the rigid pairs keep the scalar rows.
 
+Vectorised splat loop (both profiles, without rotations and scales). The splats of a run of at
+least :data:`SHORT_RUN` splats are remapped in a loop over that run alone, its face's row read
+once before it (:func:`_local_run_splats`, :func:`_games_run_splats`), which LLVM vectorises
+eight splats per AVX2 instruction; shorter runs take the scalar rows. 1M splats on 100k
+faces (about 10 a run), one thread: ``local`` 12.1 → 10.4 ms, ``games`` 16.7 → 14.4 ms. Runs
+of about 10 splats leave part of the work to the loops' scalar remainders, so the gain grows
+with the splats a face carries. With rotations and scales the spans of
+:mod:`gsverse_format.remapping.compiled` stay scalar (more output streams than LLVM checks for
+overlap).
+
 A face whose splats straddle a chunk boundary is computed once per chunk. The results do not
 depend on the chunking, the thread count or the path: every splat's result depends only on its
 anchors and its face's float32 quantities, bit-identical to the two-pass kernels. Splats not
@@ -41,7 +51,8 @@ grouped by face (more runs than faces plus chunks) keep the two passes.
 The kernels take the chunk size as an argument (from the :class:`RunPlan`), so a kernel loaded
 from the on-disk cache (``cache=True``) can never disagree with the plan. numba checks only this
 file for changes: after editing the inlined ``*_row`` and ``*_span`` functions of
-:mod:`gsverse_format.remapping.compiled` or :func:`gsverse_format.compiled_chunks.next_chunk`,
+:mod:`gsverse_format.remapping.compiled` (``local_splat`` and ``games_splat`` too) or
+:func:`gsverse_format.compiled_chunks.next_chunk`,
 delete the cached ``compiled_runs.*`` entries (``remapping/__pycache__``, or under
 ``NUMBA_CACHE_DIR``).
 """
