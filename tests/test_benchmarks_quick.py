@@ -1,6 +1,7 @@
 """``python -m benchmarks.binding --quick`` runs and prints its table (timings are not checked)."""
 from __future__ import annotations
 
+import json
 import os
 import pathlib
 import subprocess
@@ -144,3 +145,22 @@ def test_engines_benchmark_says_why_it_did_not_run(tmp_path):
     assert "Skipped: node is not installed." in out.stdout
     assert "| web shaders (WebGL2) | – | not run: node is not installed |" in out.stdout
     assert "| native kernels (GLSL/HLSL, Vulkan) | – | empty: vulkaninfo is not installed |" in out.stdout
+
+
+def test_remap_face_split_recovers_the_costs_it_was_built_from():
+    """``benchmarks.remap.face_split`` on scaling rows made from a known cost per face (20 ns)
+    and per splat (10 ns), 2 threads: the fit gives them back, and the face budget of the
+    1.3× goal is 0.3 / (φ_small − 1.3 φ_mid) splats."""
+    code = (
+        "import json\n"
+        "from benchmarks.remap import face_split\n"
+        "rows = [{'n': n, 'faces_used': f, 'threads': 2, 'ms': (f * 20.0 + n * 10.0) / 2 / 1e6}\n"
+        "        for n, f in ((100_000, 63_000), (1_000_000, 100_000), (4_000_000, 100_000))]\n"
+        "print(json.dumps(face_split(rows)))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    split = json.loads(out.stdout)
+    assert abs(split["face_ns"] - 20.0) < 1e-6 and abs(split["splat_ns"] - 10.0) < 1e-6
+    assert abs(split["small_faces_per_splat"] - 0.63) < 1e-12
+    assert abs(split["face_budget"] - 0.3 / (0.63 - 1.3 * 0.1)) < 1e-9
