@@ -44,7 +44,7 @@ from gsverse_format.converters.registry import register_source
 from gsverse_format.errors import FormatError, GsverseError
 from gsverse_format.frames import local_frames
 from gsverse_format.io.mesh import read_mesh
-from gsverse_format.io.ply import describe_ply, read_splat_ply
+from gsverse_format.io.ply import describe_ply, read_splat_means, read_splat_ply
 from gsverse_format.model import Anchoring, DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
 from gsverse_format.remapping.reference import remap
 from gsverse_format.tolerances import mesh_extent, rest_mean_tolerance
@@ -227,12 +227,12 @@ def _splats_per_face(n: int, f: int, input_path: str, mesh_name: str,
     return k
 
 
-def _verify_means(splats: SplatCloud, mesh: TriangleMesh, face_index: np.ndarray,
+def _verify_means(means: np.ndarray, mesh: TriangleMesh, face_index: np.ndarray,
                   weights: np.ndarray, k: int, mesh_name: str) -> tuple[float, float]:
-    """Max distance of the PLY means from their slot positions (absolute, ÷ diagonal)."""
+    """Max distance of the PLY ``means`` from their slot positions (absolute, ÷ diagonal)."""
     tri = mesh.triangles()
     slot = np.einsum("nm,nmx->nx", weights.astype(np.float64), tri[face_index])
-    err = np.linalg.norm(splats.means.astype(np.float64) - slot, axis=1)
+    err = np.linalg.norm(means.astype(np.float64) - slot, axis=1)
     diagonal = _diagonal(mesh)
     worst = float(err.max()) if err.size else 0.0
     rel = worst / diagonal if diagonal > 0 else (0.0 if worst == 0 else np.inf)
@@ -271,9 +271,9 @@ def matches_layout(ply_path: str, mesh_path: str, info: dict[str, Any]) -> bool:
         if f == 0 or n <= 0 or n % f or n // f not in SLOT_BARYCENTRICS:
             return False
         k = n // f
-        splats = read_splat_ply(ply_path)
+        means = read_splat_means(ply_path)      # the positions alone: nothing else is needed
         weights = np.tile(slot_barycentrics(k), (f, 1))
-        _verify_means(splats, mesh, np.repeat(np.arange(f), k), weights, k, os.fspath(mesh_path))
+        _verify_means(means, mesh, np.repeat(np.arange(f), k), weights, k, os.fspath(mesh_path))
     except GsverseError:
         return False
     return True
@@ -304,7 +304,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
     table = slot_barycentrics(k)
     face = np.repeat(np.arange(f, dtype=np.intp), k)
     weights = np.tile(table, (f, 1))
-    worst, rel = _verify_means(splats, mesh, face, weights, k, mesh_name)
+    worst, rel = _verify_means(splats.means, mesh, face, weights, k, mesh_name)
     notes.append(f"SuGaR binding: {k} splat(s) per face on {f} faces, slot positions match the "
                  f"PLY means within {worst:.2g} ({rel:.2g} of the mesh diagonal)")
 

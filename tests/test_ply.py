@@ -13,7 +13,7 @@ import pytest
 from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.io.ply import (OPACITY_CLAMP, SH_C0, describe_ply, ply_triangles,
                                    read_ply_elements, read_ply_header, read_ply_mesh,
-                                   read_splat_ply, write_ply, write_splat_ply)
+                                   read_splat_means, read_splat_ply, write_ply, write_splat_ply)
 from gsverse_format.io.registry import FORMATS as FORMAT_TABLE
 from gsverse_format.model import SplatAsset, SplatCloud, SplatPrimitive
 
@@ -263,6 +263,29 @@ def test_formats_read_identically(tmp_path):
         for attr in ("means", "rotations", "scales", "opacities", "sh"):
             assert np.array_equal(getattr(other, attr), getattr(clouds[0], attr)), attr
         assert np.array_equal(other.extra["filter_3D"], clouds[0].extra["filter_3D"])
+
+
+@pytest.mark.parametrize("shuffle", [False, True])
+def test_means_alone_are_the_means_of_the_full_read(tmp_path, shuffle):
+    """``read_splat_means`` (source detection's read) gives ``read_splat_ply``'s means in every
+    format and property order (x, y, z scattered among the others: the copying path), NaN
+    included, and refuses what is not a splat PLY as the full read does."""
+    props = splat_props(60, degree=3, shuffle=shuffle, seed=4)
+    for fmt in ALL_FORMATS:
+        path = write(tmp_path, f"{fmt}.ply", raw_ply(fmt, [("vertex", 60, props)]))
+        means = read_splat_means(path)
+        assert means.dtype == np.float32 and means.shape == (60, 3)
+        assert np.array_equal(means, read_splat_ply(path).means), fmt
+    nan_props = [(t, name, np.where(np.arange(60) == 7, np.nan, v) if name == "y" else v)
+                 for t, name, v in props]
+    nan_path = write(tmp_path, "nan.ply", raw_ply("binary_little_endian",
+                                                   [("vertex", 60, nan_props)]))
+    assert np.isnan(read_splat_means(nan_path)[7, 1])
+    no_rot = [p for p in props if not p[1].startswith("rot_")]
+    bad = write(tmp_path, "bad.ply", raw_ply("binary_little_endian", [("vertex", 60, no_rot)]))
+    full = expect_error(bad)
+    alone = expect_error(bad, reader=read_splat_means)
+    assert str(alone) == str(full)
 
 
 def test_f_rest_channel_major(tmp_path):

@@ -6,7 +6,8 @@
   strict and bounded: every problem is a one-line ``FormatError`` naming the file.
 * :mod:`.splat`: the 3D Gaussian splatting layout (``f_dc``/``f_rest`` channel-major SH,
   opacity logits, log scales, ``rot_0..3`` quaternions, normals, the SH degree):
-  :func:`read_splat_ply`, :func:`write_splat_ply`, :func:`describe_ply`, and the round-trip
+  :func:`read_splat_ply` (:func:`read_splat_means` for the positions alone),
+  :func:`write_splat_ply`, :func:`describe_ply`, and the round-trip
   accuracy the writer guarantees.
 * :mod:`.mesh`: triangle meshes (:func:`read_ply_mesh`).
 
@@ -20,7 +21,7 @@ from .container import PlyData, read_ply_elements, write_ply
 from .header import PlyElement, PlyHeader, PlyProperty, read_ply_header
 from .mesh import ply_triangles, read_ply_mesh
 from .splat import (OPACITY_CLAMP, SCALE_FLOOR, SH_C0, describe_ply, read_ply_asset,
-                    read_splat_ply, write_ply_asset, write_splat_ply)
+                    read_splat_means, read_splat_ply, write_ply_asset, write_splat_ply)
 
 __all__ = [
     "PlyProperty",
@@ -33,6 +34,7 @@ __all__ = [
     "ply_triangles",
     "read_ply_mesh",
     "read_splat_ply",
+    "read_splat_means",
     "describe_ply",
     "write_splat_ply",
     "read_ply_asset",

@@ -79,8 +79,8 @@ from .container import read_ply_elements, write_ply
 from .header import PlyElement, PlyHeader, read_ply_header
 
 __all__ = ["SH_C0", "OPACITY_CLAMP", "SCALE_FLOOR", "SH_REST_COUNTS", "sh_degree_of",
-           "describe_ply", "read_splat_ply", "write_splat_ply", "read_ply_asset",
-           "write_ply_asset"]
+           "describe_ply", "read_splat_ply", "read_splat_means", "write_splat_ply",
+           "read_ply_asset", "write_ply_asset"]
 
 #: Opacities are clamped to this range before the logit is written (see the module docstring).
 OPACITY_CLAMP = (2.0 ** -152, 1.0 - 2.0 ** -26)
@@ -215,6 +215,18 @@ def _all_finite(values: np.ndarray) -> bool:
     if values.dtype.kind != "f" or values.size == 0:
         return True
     return bool(np.isfinite(np.min(values)) and np.isfinite(np.max(values)))
+
+
+def read_splat_means(path: str | os.PathLike[str]) -> np.ndarray:
+    """Only the (N, 3) float32 means of a 3DGS splat PLY: the values :func:`read_splat_ply`
+    gives as ``means``, without decoding or checking anything else (not even their
+    finiteness), for a caller that needs the positions alone (source detection). The file is
+    refused as :func:`read_splat_ply` refuses a file that is not a splat PLY."""
+    path = os.fspath(path)
+    _splat_layout(read_ply_header(path), path)
+    vertex = read_ply_elements(path, elements=("vertex",))["vertex"]
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.array(_field_block(vertex, ["x", "y", "z"]), np.float32)
 
 
 def read_splat_ply(path: str | os.PathLike[str], *, keep_nonfinite: bool = False) -> SplatCloud:
