@@ -65,7 +65,7 @@ def test_precompiled_jobs_compile_nothing(tmp_path):
     assert first.returncode == 0, first.stderr
     report = json.loads(first.stdout)
     assert report["ok"] and {g["group"] for g in report["groups"]} == {
-        "nearest", "remap-sorted", "remap-unsorted", "render"}
+        "nearest", "remap-sorted-local", "remap-sorted-games", "remap-unsorted", "render"}
     assert all(g["compiled"] > 0 for g in report["groups"])
 
     again = _run(["-m", "gsverse_format.precompile", "--json"], env, tmp_path)
