@@ -212,6 +212,23 @@ def _affine_rows(vertices, faces, rest, run_face, r0, r1, table, qrun, ws):
 
 
 @njit(cache=True, inline="always")
+def _store(means, cov6, i, mx, my, mz, s00, s01, s02, s11, s12, s22):
+    """Splat ``i``'s mean and six covariance entries into the flat ``means`` (N·3) and
+    ``cov6`` (N·6) of the vectorised run loops."""
+    m = i * 3
+    means[m] = mx
+    means[m + 1] = my
+    means[m + 2] = mz
+    v = i * 6
+    cov6[v] = s00
+    cov6[v + 1] = s01
+    cov6[v + 2] = s02
+    cov6[v + 3] = s11
+    cov6[v + 4] = s12
+    cov6[v + 5] = s22
+
+
+@njit(cache=True, inline="always")
 def _local_run_splats(consts, t, means, cov6, first, count):
     """``local`` splats ``first .. first + count - 1`` of one run (no rigid pairs), its face's
     table row ``t`` read once before the loop; ``consts``, ``means`` and ``cov6`` flattened
@@ -231,17 +248,7 @@ def _local_run_splats(consts, t, means, cov6, first, count):
             (consts[c], consts[c + 1], consts[c + 2], consts[c + 3], consts[c + 4],
              consts[c + 5], consts[c + 6], consts[c + 7], consts[c + 8], consts[c + 9],
              consts[c + 10], consts[c + 11]), face)
-        m = i * 3
-        means[m] = mx
-        means[m + 1] = my
-        means[m + 2] = mz
-        v = i * 6
-        cov6[v] = s00
-        cov6[v + 1] = s01
-        cov6[v + 2] = s02
-        cov6[v + 3] = s11
-        cov6[v + 4] = s12
-        cov6[v + 5] = s22
+        _store(means, cov6, i, mx, my, mz, s00, s01, s02, s11, s12, s22)
 
 
 @njit(parallel=True, cache=True)
@@ -306,16 +313,7 @@ def _games_run_splats(consts, t, means, cov6, first, count):
         mx, my, mz, c00, c01, c02, c11, c12, c22, _, _, _ = games_splat(
             consts[k], consts[k + 1], consts[k + 2], x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z,
             nx, ny, nz, ux, uy, uz, vx, vy, vz, t1, t2)
-        means[k] = mx
-        means[k + 1] = my
-        means[k + 2] = mz
-        v = i * 6
-        cov6[v] = c00
-        cov6[v + 1] = c01
-        cov6[v + 2] = c02
-        cov6[v + 3] = c11
-        cov6[v + 4] = c12
-        cov6[v + 5] = c22
+        _store(means, cov6, i, mx, my, mz, c00, c01, c02, c11, c12, c22)
 
 
 @njit(parallel=True, cache=True)
