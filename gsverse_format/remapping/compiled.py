@@ -335,7 +335,7 @@ def _games_face(vertices, faces, f):
 
 @njit(cache=True, inline="always")
 def games_splat(a1, a2, rho, x0, y0, z0, e1x, e1y, e1z, e2x, e2y, e2z, nx, ny, nz,
-                 ux, uy, uz, vx, vy, vz, t1, t2):
+                ux, uy, uz, vx, vy, vz, t1, t2):
     """Mean, the six covariance entries and the three scales of one ``games`` splat (float32,
     explicit FMAs: the rounding is fixed by the source, as in :func:`local_splat`)."""
     zero = np.float32(0.0)

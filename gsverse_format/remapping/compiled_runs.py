@@ -254,10 +254,9 @@ def _local_run_splats(consts, t, means, cov6, first, count):
 @njit(parallel=True, cache=True)
 def local_runs(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid: bool,
                run_face: np.ndarray, run_of: np.ndarray, run_start: np.ndarray,
-               chunk_run: np.ndarray,
-               consts: np.ndarray, table: np.ndarray, qrun: np.ndarray, means: np.ndarray,
-               cov6: np.ndarray, qlocal: np.ndarray, slocal: np.ndarray, rotations: np.ndarray,
-               scales: np.ndarray, chunk: int, workers: int) -> None:
+               chunk_run: np.ndarray, consts: np.ndarray, table: np.ndarray, qrun: np.ndarray,
+               means: np.ndarray, cov6: np.ndarray, qlocal: np.ndarray, slocal: np.ndarray,
+               rotations: np.ndarray, scales: np.ndarray, chunk: int, workers: int) -> None:
     """One-pass remap of the ``local`` profile: per chunk, the faces of its runs into rows
     ``chunk_run[c] .. chunk_run[c + 1]`` of ``table`` (R, :data:`TABLE_WIDTH`) (and ``qrun``
     (R, 4) when the rigid pairs are wanted, i.e. ``rotations`` has N rows), then its splats.
@@ -319,9 +318,8 @@ def _games_run_splats(consts, t, means, cov6, first, count):
 @njit(parallel=True, cache=True)
 def games_runs(vertices: np.ndarray, faces: np.ndarray, run_face: np.ndarray,
                run_of: np.ndarray, run_start: np.ndarray, chunk_run: np.ndarray,
-               consts: np.ndarray,
-               table: np.ndarray, means: np.ndarray, cov6: np.ndarray, rotations: np.ndarray,
-               scales: np.ndarray, chunk: int, workers: int) -> None:
+               consts: np.ndarray, table: np.ndarray, means: np.ndarray, cov6: np.ndarray,
+               rotations: np.ndarray, scales: np.ndarray, chunk: int, workers: int) -> None:
     """One-pass remap of the ``games`` profile (``rotations``/``scales`` written when they have
     N rows); ``table`` as in :func:`local_runs`. Without rotations and scales, runs of at least
     :data:`SHORT_RUN` splats take the vectorised :func:`_games_run_splats`."""
