@@ -112,6 +112,49 @@ def copy_bandwidth(threads: int, mib: int = 256, min_quiet: int = 0,
     return 2 * x.nbytes / t.median / 1e9, t.as_dict()
 
 
+_ARITH = []
+#: Faces in the workspace of :func:`face_arithmetic_ns` (8 rows of float64: 64 KiB, in L2).
+_ARITH_FACES = 1024
+
+
+def _arith_kernel():
+    if not _ARITH:
+        from numba import njit
+
+        b = _ARITH_FACES
+
+        @njit(error_model="numpy")
+        def _arith(w, reps):  # pragma: no cover - compiled
+            for _ in range(reps):
+                for j in range(b):
+                    cx, cy, cz, root_r = w[j], w[b + j], w[2 * b + j], w[3 * b + j]
+                    root_c = np.sqrt(np.sqrt(cx * cx + cy * cy + cz * cz))
+                    s = root_c * root_r
+                    w[4 * b + j] = cx / s
+                    w[5 * b + j] = cy / s
+                    w[6 * b + j] = cz / s
+                    w[7 * b + j] = root_c / root_r
+
+        _ARITH.append(_arith)
+    return _ARITH[0]
+
+
+def face_arithmetic_ns(reps: int = 2000) -> float:
+    """Nanoseconds a face of the float64 arithmetic alone of the affine face step (two square
+    roots, four divisions, as :func:`gsverse_format.remapping.compiled_runs._affine_rows`
+    computes them), in a loop LLVM vectorises, on one core, with no gather and no table row:
+    a lower bound of any face step that keeps the faces in float64. Median of 5 timings."""
+    kernel = _arith_kernel()
+    w = np.random.default_rng(0).uniform(0.5, 1.5, 8 * _ARITH_FACES)
+    kernel(w, 1)
+    times = []
+    for _ in range(5):
+        t0 = time.perf_counter()
+        kernel(w, reps)
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)) / (reps * _ARITH_FACES) * 1e9
+
+
 def copy_sample(threads: int, mib: int = 256) -> float:
     """One short copy measurement (GB/s, median of 5 copies, one batch) on ``threads``
     threads: the samples taken between the remap timings that the floor is the median of."""
@@ -234,6 +277,7 @@ def _scaling_rows(result: dict, mesh, verts, threads_all: int, bw: dict, quick: 
                                f"splat what {base:,} do (goal ≤ 1.3×)")
         split = face_split(list(rows.values()))
         if split:
+            split["arithmetic_ns"] = face_arithmetic_ns(reps=200 if quick else 2000)
             result["face_split"] = split
             result["notes"].append(
                 f"least squares over the scaling rows: {split['face_ns']:.1f} ns per face computed "
@@ -241,7 +285,8 @@ def _scaling_rows(result: dict, mesh, verts, threads_all: int, bw: dict, quick: 
                 f"threads); with {split['small_faces_per_splat']:.2f} faces a splat at "
                 f"{base // 10:,} splats and {split['mid_faces_per_splat']:.2f} at {base:,}, a ratio "
                 f"of 1.3 needs a face to cost at most {split['face_budget']:.2f} splats "
-                f"(it costs {split['face_ns'] / split['splat_ns']:.2f})")
+                f"(it costs {split['face_ns'] / split['splat_ns']:.2f}); the float64 arithmetic "
+                f"of a face alone, vectorised on one core: {split['arithmetic_ns']:.2f} ns")
 
 
 def face_split(rows: list[dict]) -> dict | None:

@@ -297,7 +297,10 @@ def _remap_md(remap: dict) -> list[str]:
                     f"{split['small_faces_per_splat']:.2f} faces a splat against "
                     f"{split['mid_faces_per_splat']:.2f}, so 1.3× needs a face to cost at most "
                     f"{split['face_budget']:.2f} splats; it costs "
-                    f"{split['face_ns'] / split['splat_ns']:.2f}")
+                    f"{split['face_ns'] / split['splat_ns']:.2f}"
+                    + (f". The float64 arithmetic of a face alone (two square roots, four "
+                       f"divisions), vectorised on one core: **{split['arithmetic_ns']:.2f} ns**"
+                       if "arithmetic_ns" in split else ""))
         L += goals + [""]
     rows = []
     for r in remap["rows"]:
