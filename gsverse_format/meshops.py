@@ -90,19 +90,35 @@ def face_components(faces: np.ndarray, vertex_count: int) -> tuple[int, np.ndarr
     """Connected components of faces linked through shared vertices.
 
     Returns ``(count, label (F,))`` with labels numbered by first appearance in face order.
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
+    A union–find in numpy (no scipy: importing ``scipy.sparse.csgraph`` alone took 0.2–0.3 s,
+    a third of an anchored 100k-splat conversion). Each round hooks the root of every edge's
+    larger root onto the smallest root it meets (``np.minimum.at``, so roots only ever point to
+    smaller indices and no cycle forms), then compresses every path to its root by pointer
+    jumping; edges whose ends share a root are dropped. Every component with an edge to another
+    merges in each round, so the component count at least halves and the rounds are at most
+    ``log2`` of it (2 on a 100k-face scan mesh, 15 on a 2M-face strip in shuffled vertex order,
+    where it takes as long as scipy's ``connected_components``).
+    """
     f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
     if len(f) == 0:
         return 0, np.zeros(0, np.int64)
-    rows = np.concatenate([f[:, 0], f[:, 1]])
-    cols = np.concatenate([f[:, 1], f[:, 2]])
-    graph = coo_matrix((np.ones(rows.size, np.int8), (rows, cols)),
-                       shape=(vertex_count, vertex_count))
-    _, vlabel = connected_components(graph, directed=False)
-    raw = vlabel[f[:, 0]]
+    u = np.concatenate([f[:, 0], f[:, 1]])
+    v = np.concatenate([f[:, 1], f[:, 2]])
+    root = np.arange(vertex_count, dtype=np.int64)
+    while u.size:
+        ru, rv = root[u], root[v]
+        apart = ru != rv
+        if not apart.any():
+            break
+        u, v, ru, rv = u[apart], v[apart], ru[apart], rv[apart]
+        np.minimum.at(root, np.maximum(ru, rv), np.minimum(ru, rv))
+        while True:
+            jumped = root[root]
+            if np.array_equal(jumped, root):
+                break
+            root = jumped
+    raw = root[f[:, 0]]
     uniq, first = np.unique(raw, return_index=True)
     rank = np.empty(len(uniq), np.int64)
     rank[np.argsort(first)] = np.arange(len(uniq))

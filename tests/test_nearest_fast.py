@@ -1,8 +1,8 @@
-"""The compiled nearest-triangle search equals the numpy reference bit for bit.
+"""The compiled nearest-triangle searches (numba, and C) equal the numpy reference bit for bit.
 
 Faces (including the smallest-index tie rule), distances, closest points and barycentrics must
-be identical to ``nearest_triangles(..., method="numpy")``, and both must be the brute-force
-minimum (``check_result`` from ``test_nearest``; the extended-precision comparison of the
+be identical to ``nearest_triangles(..., method="numpy")``, bit for bit (signed zeros too), and
+all must be the brute-force minimum (``check_result`` from ``test_nearest``; the extended-precision comparison of the
 kernel itself lives in ``test_nearest``).
 """
 from __future__ import annotations
@@ -22,12 +22,23 @@ from test_nearest import bumpy_icosphere, check_result, nasty_mesh, query_points
 FIELDS = ("face", "distance", "closest", "barycentric")
 
 
+def same_bits(a, b, what):
+    """Equal arrays of equal dtype, float64 compared as bit patterns."""
+    assert a.dtype == b.dtype and a.shape == b.shape, what
+    if a.dtype == np.float64:
+        a, b = a.view(np.int64), b.view(np.int64)
+    np.testing.assert_array_equal(a, b, err_msg=what)
+
+
 def both(points, vertices, faces, **kw):
-    """Run both implementations and require identical results; returns the compiled one."""
+    """Run the reference and both compiled searches (numba, C) and require identical results;
+    returns the numba one."""
     ref = nearest_triangles(points, vertices, faces, method="numpy", **kw)
     fast = nearest_triangles(points, vertices, faces, method="numba", **kw)
+    native = nearest_triangles(points, vertices, faces, method="native", **kw)
     for name in FIELDS:
-        np.testing.assert_array_equal(getattr(fast, name), getattr(ref, name), err_msg=name)
+        same_bits(getattr(fast, name), getattr(ref, name), f"numba {name}")
+        same_bits(getattr(native, name), getattr(ref, name), f"native {name}")
     assert fast.face.dtype == np.int64 and fast.distance.dtype == np.float64
     return fast
 
@@ -188,6 +199,12 @@ def test_nasty_mesh_equals_reference(seed):
         numba.set_num_threads(threads)
     for name in FIELDS:
         np.testing.assert_array_equal(getattr(again, name), getattr(res, name))
+    for n in ("1", "7"):                                   # the C search: 1 and 7 threads
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setenv("GSVERSE_SEARCH_THREADS", n)
+            again = nearest_triangles(p, v, f, method="native", chunk=37)
+        for name in FIELDS:
+            same_bits(getattr(again, name), getattr(res, name), f"{n} threads {name}")
 
 
 def test_offset_and_scaled_mesh():
@@ -256,38 +273,113 @@ def test_far_points_and_large_meshes_of_many_leaves():
 def test_empty_points_progress_and_validation():
     v, f = bumpy_icosphere(1, seed=18)
     calls = []
-    res = nearest_triangles(np.zeros((0, 3)), v, f, method="numba",
-                            progress=lambda d, t: calls.append((d, t)))
-    assert calls == [(0, 0)] and res.face.shape == (0,) and res.closest.shape == (0, 3)
     p = np.random.default_rng(19).normal(size=(10, 3))
-    calls.clear()
-    nearest_triangles(p, v, f, chunk=4, method="numba", progress=lambda d, t: calls.append((d, t)))
-    assert calls == [(4, 10), (8, 10), (10, 10)]
-    for bad in (dict(faces=np.zeros((0, 3), np.int64)), dict(points=p[:, :2]),
-                dict(faces=f + len(v)), dict(points=np.full((1, 3), np.nan))):
-        args = dict(points=p, vertices=v, faces=f) | bad
-        with pytest.raises(ValueError):
-            nearest_triangles(**args, method="numba")
-    with pytest.raises(ValueError):
+    for method in ("numba", "native"):
+        calls.clear()
+        res = nearest_triangles(np.zeros((0, 3)), v, f, method=method,
+                                progress=lambda d, t: calls.append((d, t)))
+        assert calls == [(0, 0)] and res.face.shape == (0,) and res.closest.shape == (0, 3)
+        calls.clear()
+        nearest_triangles(p, v, f, chunk=4, method=method,
+                          progress=lambda d, t: calls.append((d, t)))
+        assert calls == [(4, 10), (8, 10), (10, 10)]
+        for bad in (dict(faces=np.zeros((0, 3), np.int64)), dict(points=p[:, :2]),
+                    dict(faces=f + len(v)), dict(points=np.full((1, 3), np.nan))):
+            args = dict(points=p, vertices=v, faces=f) | bad
+            with pytest.raises(ValueError):
+                nearest_triangles(**args, method=method)
+    with pytest.raises(ValueError, match="'native'"):
         nearest_triangles(p, v, f, method="fortran")
 
 
 def test_dispatch(monkeypatch):
+    from gsverse_format.nearest import native as nn
+
     v, f = bumpy_icosphere(1, seed=24)
     p = np.random.default_rng(25).normal(size=(20, 3))
     used = []
-    real = nf.build_tree
-    monkeypatch.setattr(nf, "build_tree", lambda *a: used.append(1) or real(*a))
+    real, real_native = nf.build_tree, nn.nearest_triangles_native
+    monkeypatch.setattr(nf, "build_tree", lambda *a: used.append("numba") or real(*a))
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.nearest_triangles_native",
+                        lambda *a, **k: used.append("native") or real_native(*a, **k))
     nearest_triangles(p, v, f)
-    assert used == []                                    # auto, a small job: the reference
+    assert used == ["native"]                            # auto: the C search, at any size
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.native_available", lambda: False)
+    nearest_triangles(p, v, f)
+    assert used == ["native"]                  # without it, a small job: the reference
     monkeypatch.setattr("gsverse_format.nearest.dispatch.NEAREST_NUMPY_BELOW", 0)
     nearest_triangles(p, v, f)
-    assert used == [1]                                   # auto: compiled when numba imports
+    assert used == ["native", "numba"]                   # auto: numba when it imports
+    monkeypatch.undo()
+    used.clear()
+    monkeypatch.setattr(nf, "build_tree", lambda *a: used.append("numba") or real(*a))
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.NEAREST_NUMPY_BELOW", 0)
     monkeypatch.setenv("GSVERSE_BACKEND", "numpy")
     nearest_triangles(p, v, f)
-    assert used == [1]                                   # the environment forces the reference
+    assert used == []                                    # the environment forces the reference
     nearest_triangles(p, v, f, method="numba")
-    assert used == [1, 1]                                # an explicit method wins
+    assert used == ["numba"]                             # an explicit method wins
+    monkeypatch.setenv("GSVERSE_BACKEND", "numba")
+    nearest_triangles(p, v, f)
+    assert used == ["numba", "numba"]                    # the environment asks for numba
     monkeypatch.setenv("GSVERSE_BACKEND", "auto")
     nearest_triangles(p, v, f)
-    assert used == [1, 1, 1]
+    assert used == ["numba", "numba"]                    # auto again: the C search
+
+
+def test_the_c_search_is_built_and_refused_when_absent(monkeypatch):
+    """The package's set-up builds the C search (the suite runs where a C compiler is, as the
+    native kernels' tests need one too); without it, asking for it names the reason."""
+    from gsverse_format.backend import BackendUnavailableError
+    from gsverse_format.nearest import native as nn
+
+    assert nn.native_unavailable_reason() is None, nn.native_unavailable_reason()
+    monkeypatch.setattr(nn, "_module", lambda: None)
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.native_available", nn.native_available)
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.native_unavailable_reason",
+                        nn.native_unavailable_reason)
+    v, f = bumpy_icosphere(1, seed=24)
+    with pytest.raises(BackendUnavailableError, match="C compiler"):
+        nearest_triangles(np.zeros((1, 3)), v, f, method="native")
+    with pytest.raises(ImportError, match="C compiler"):
+        nn.nearest_triangles_native(np.zeros((1, 3)), v, f)
+
+
+def test_search_threads(monkeypatch):
+    from gsverse_format.nearest import native as nn
+
+    monkeypatch.delenv("GSVERSE_SEARCH_THREADS", raising=False)
+    assert nn.search_threads() >= 1
+    monkeypatch.setenv("GSVERSE_SEARCH_THREADS", " 3 ")
+    assert nn.search_threads() == 3
+    for bad in ("0", "-2", "many"):
+        monkeypatch.setenv("GSVERSE_SEARCH_THREADS", bad)
+        with pytest.raises(ValueError, match="GSVERSE_SEARCH_THREADS"):
+            nn.search_threads()
+
+
+def test_the_c_extension_refuses_calls_that_would_leave_its_arrays():
+    """The extension's own checks (its one caller checks first): indices out of range, wrong
+    dtypes and sizes raise instead of reading or writing outside the buffers."""
+    from gsverse_format.nearest import _native
+
+    v = np.eye(3)
+    f = np.array([[0, 1, 2]], np.int64)
+    with pytest.raises(ValueError, match="range"):
+        _native.build(v, np.array([[0, 1, 3]], np.int64), np.array([0], np.int64), 1e-8, 1)
+    with pytest.raises(ValueError, match="range"):
+        _native.build(v, f, np.array([1], np.int64), 1e-8, 1)
+    with pytest.raises(TypeError, match="float64"):
+        _native.build(v.astype(np.float32), f, np.array([0], np.int64), 1e-8, 1)
+    tree = _native.build(v, f, np.array([0], np.int64), 1e-8, 1)
+    p = np.zeros((2, 3))
+    out = (np.empty(2, np.int64), np.empty(2), np.empty((2, 3)), np.empty((2, 3)))
+    with pytest.raises(ValueError, match="order"):
+        _native.query(tree, p, np.array([0, 2], np.int64), 0, 2, 1e-11, 1, *out)
+    with pytest.raises(ValueError, match="range"):
+        _native.query(tree, p, np.array([0, 1], np.int64), 0, 3, 1e-11, 1, *out)
+    with pytest.raises(ValueError, match="size"):
+        _native.query(tree, p, np.array([0, 1], np.int64), 0, 2, 1e-11, 1,
+                      out[0], out[1], out[2], np.empty((1, 3)))
+    _native.query(tree, p, np.array([1, 0], np.int64), 0, 2, 1e-11, 1, *out)
+    assert list(out[0]) == [0, 0] and np.allclose(out[1], 1 / np.sqrt(3))

@@ -7,16 +7,22 @@ with :func:`closest_points_on_triangles` over every face would find — with the
 it and that point's barycentric coordinates; among faces at exactly the minimal distance the
 smallest face index wins.
 
-Two implementations give identical results, bit for bit:
+Three implementations give identical results, bit for bit:
 
 * :mod:`gsverse_format.nearest.reference`, the vectorised numpy reference, whose docstring
   states the kernel, the certified branch-and-bound search and the tie rule;
-* :mod:`gsverse_format.nearest.compiled`, the compiled search (numba, a BVH traversed per
-  point on all cores), with its kernel in :mod:`gsverse_format.nearest.compiled_kernel`.
+* :mod:`gsverse_format.nearest.native`, the search in C (``native/search/gsverse_nearest.h``,
+  built with the package when a C compiler is present; a BVH traversed per point on all
+  cores), which loads in a millisecond;
+* :mod:`gsverse_format.nearest.compiled`, the same search compiled by numba, with its kernel in
+  :mod:`gsverse_format.nearest.compiled_kernel`: the compiled search where the C one was not
+  built.
 
-This module only chooses between them (``method``, resolved by :mod:`gsverse_format.backend`:
-``GSVERSE_BACKEND=numpy`` or ``set_backend("numpy")`` forces the reference; under ``"auto"``
-small jobs run the reference, see :data:`gsverse_format.backend.NEAREST_NUMPY_BELOW`).
+This module only chooses between them (``method``). ``"auto"`` runs the C search when it was
+built and neither :func:`gsverse_format.backend.set_backend` nor ``GSVERSE_BACKEND`` chose a
+backend; otherwise :mod:`gsverse_format.backend` resolves it: ``GSVERSE_BACKEND=numpy`` or
+``set_backend("numpy")`` forces the reference, ``numba`` the numba search, and under ``"auto"``
+small jobs run the reference (see :data:`gsverse_format.backend.NEAREST_NUMPY_BELOW`).
 """
 from __future__ import annotations
 
@@ -27,10 +33,14 @@ from numpy.typing import ArrayLike
 import numpy as np
 
 from ..atomic import interruptions_immediate
-from ..backend import NEAREST_NUMPY_BELOW, resolve_backend
+from ..backend import NEAREST_NUMPY_BELOW, BackendUnavailableError, get_backend, resolve_backend
+from .native import native_available, native_unavailable_reason, nearest_triangles_native
 from .reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
 
-__all__ = ["NearestResult", "nearest_triangles", "closest_points_on_triangles"]
+__all__ = ["NearestResult", "nearest_triangles", "closest_points_on_triangles", "METHODS"]
+
+#: The names ``method`` accepts.
+METHODS: tuple[str, ...] = ("auto", "native", "numba", "numpy")
 
 
 def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
@@ -45,19 +55,29 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     Raises ``ValueError`` on malformed input or when no face is selectable.
     See :mod:`gsverse_format.nearest.reference` for the exactness guarantee and the tie rule.
 
-    ``method`` picks the implementation; both return identical results. ``"numba"`` is the
-    compiled, multi-threaded search of :mod:`gsverse_format.nearest.compiled`, ``"numpy"`` the
-    vectorised reference of :mod:`gsverse_format.nearest.reference`, and ``"auto"`` (default)
-    the process-wide choice of :mod:`gsverse_format.backend`: numba when it can be imported,
-    unless ``GSVERSE_BACKEND`` or :func:`~gsverse_format.backend.set_backend` says otherwise,
-    and numpy for jobs of fewer than
-    :data:`~gsverse_format.backend.NEAREST_NUMPY_BELOW` points + faces (there the reference
-    answers faster than numba can be imported, let alone compile its kernels).
-    ``"numba"`` without numba raises :class:`~gsverse_format.backend.BackendUnavailableError`
-    (an ``ImportError``).
+    ``method`` picks the implementation; all return identical results. ``"native"`` is the C
+    search of :mod:`gsverse_format.nearest.native`, ``"numba"`` the numba search of
+    :mod:`gsverse_format.nearest.compiled` (both multi-threaded), ``"numpy"`` the vectorised
+    reference of :mod:`gsverse_format.nearest.reference`, and ``"auto"`` (default) the C search
+    when it was built and no process-wide backend was chosen, else the process-wide choice of
+    :mod:`gsverse_format.backend`: numba when it can be imported, unless ``GSVERSE_BACKEND`` or
+    :func:`~gsverse_format.backend.set_backend` says otherwise, and numpy for jobs of fewer
+    than :data:`~gsverse_format.backend.NEAREST_NUMPY_BELOW` points + faces (there the
+    reference answers faster than numba can be imported, let alone compile its kernels).
+    ``"native"`` where the C search was not built, or ``"numba"`` without numba, raises
+    :class:`~gsverse_format.backend.BackendUnavailableError` (an ``ImportError``).
     """
+    chosen = method.strip().lower() if isinstance(method, str) else method
+    if chosen not in METHODS:
+        raise ValueError(f"method must be 'auto', 'native', 'numba' or 'numpy', got {method!r}")
+    if chosen == "native" and not native_available():
+        raise BackendUnavailableError(native_unavailable_reason())
+    if chosen == "native" or (chosen == "auto" and get_backend() == "auto"
+                              and native_available()):
+        return nearest_triangles_native(points, vertices, faces, exclude=exclude, chunk=chunk,
+                                        progress=progress)
     size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
-    if resolve_backend(method, argument="method", size=size,
+    if resolve_backend(chosen, argument="method", size=size,
                        numpy_below=NEAREST_NUMPY_BELOW) == "numba":
         with interruptions_immediate():   # compiled code: no Python handler may raise inside
             from .compiled import nearest_triangles_numba

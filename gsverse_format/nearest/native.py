@@ -1,0 +1,113 @@
+"""The exact nearest-triangle search in C, bit-identical to the numpy reference.
+
+:func:`nearest_triangles_native` answers the question of
+:func:`gsverse_format.nearest.reference.nearest_triangles_numpy` with the same
+:class:`~gsverse_format.nearest.reference.NearestResult`, face for face and bit for bit. The
+search is ``native/search/gsverse_nearest.h`` (portable C99: the same BVH, bounds, certificate
+and tie rule as the numba search of :mod:`gsverse_format.nearest.compiled`, whose docstring
+states them), compiled at install time into the extension ``gsverse_format.nearest._native``
+(``setup.py``) without fused multiply-adds, and run on POSIX threads without the interpreter
+lock. The margin and the degenerate-face ratio come from
+:mod:`gsverse_format.nearest.reference` at each call, so the rules stay written once.
+
+Why it exists beside the numba search: it loads in about a millisecond, where a new process
+spends 0.6–1 s importing numba and loading its cached kernels before the first query (more
+than a whole plain 100k-splat conversion). Binding therefore uses it whenever it was built
+(:func:`gsverse_format.nearest.nearest_triangles`, ``method="auto"``). Installed without a C
+compiler the extension is absent, :func:`native_unavailable_reason` says so, and the search
+runs on numba.
+
+Threads: :func:`search_threads`, the CPUs this process may run on (``os.sched_getaffinity``),
+or ``GSVERSE_SEARCH_THREADS`` when set to a positive integer.
+"""
+from __future__ import annotations
+
+import os
+from functools import lru_cache
+from types import ModuleType
+from typing import Callable
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .reference import DEGENERATE_RATIO, MARGIN, NearestResult, prepare_query
+
+__all__ = ["THREADS_VARIABLE", "native_unavailable_reason", "native_available",
+           "search_threads", "nearest_triangles_native"]
+
+#: Environment variable overriding the number of search threads (a positive integer).
+THREADS_VARIABLE = "GSVERSE_SEARCH_THREADS"
+
+
+@lru_cache(maxsize=None)
+def _module() -> ModuleType | None:
+    try:
+        from . import _native
+    except ImportError:
+        return None
+    return _native
+
+
+def native_unavailable_reason() -> str | None:
+    """Why the C search cannot be used, or None when it can."""
+    if _module() is None:
+        return ("the compiled search gsverse_format.nearest._native was not built (the package "
+                "was installed without a C compiler); reinstall with gcc or clang present")
+    return None
+
+
+def native_available() -> bool:
+    """True when the C search was built with the package."""
+    return _module() is not None
+
+
+def search_threads() -> int:
+    """Threads the C search uses: ``GSVERSE_SEARCH_THREADS`` when set, else the usable CPUs."""
+    value = os.environ.get(THREADS_VARIABLE, "").strip()
+    if value:
+        try:
+            n = int(value)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"{THREADS_VARIABLE} must be a positive integer, got {value!r}")
+        return n
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except AttributeError:                       # not on Linux
+        return max(os.cpu_count() or 1, 1)
+
+
+def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
+                             exclude: ArrayLike | None = None, chunk: int = 65536,
+                             progress: Callable[[int, int], None] | None = None
+                             ) -> NearestResult:
+    """The C search: same arguments and result as
+    :func:`~gsverse_format.nearest.reference.nearest_triangles_numpy`, bit for bit.
+
+    Raises :class:`ImportError` when the extension was not built (see
+    :func:`native_unavailable_reason`)."""
+    mod = _module()
+    if mod is None:
+        raise ImportError(native_unavailable_reason())
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
+    n = P.shape[0]
+    res = NearestResult(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n), np.empty((n, 3)))
+    if n == 0:
+        if progress is not None:
+            progress(0, 0)
+        return res
+    threads = search_threads()
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    tree = mod.build(V, F, np.ascontiguousarray(idx, dtype=np.int64), DEGENERATE_RATIO, threads)
+    order = np.empty(n, np.int64)
+    Ps = np.empty((n, 3))
+    mod.sort_queries(np.ascontiguousarray(P, dtype=np.float64), order, Ps)
+    for lo in range(0, n, chunk):
+        hi = min(lo + chunk, n)
+        mod.query(tree, Ps, order, lo, hi, MARGIN, threads,
+                  res.face, res.distance, res.closest, res.barycentric)
+        if progress is not None:
+            progress(hi, n)
+    return res

@@ -1,0 +1,339 @@
+/*
+ * gsverse_format.nearest._native: the C search of gsverse_nearest.h as a CPython extension.
+ *
+ * Three functions, called by gsverse_format/nearest/native.py (which checks and converts the
+ * arguments first; the checks here only keep a wrong call from reading or writing out of
+ * bounds):
+ *
+ *   build(V, F, idx, degenerate_ratio, threads) -> tree (a capsule)
+ *   sort_queries(P, order, Ps)          coarse Morton order of P into order, P[order] into Ps
+ *   query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric)
+ *
+ * Arrays are C-contiguous float64 ('d') or int64 buffers. The work runs without the
+ * interpreter lock, on `threads` POSIX threads (the calling thread among them) that take build
+ * tasks and blocks of 64 consecutive queries from a shared counter, so a thread kept off its
+ * core delays only the block it holds.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <pthread.h>
+#include <stdint.h>
+#include <string.h>
+
+#define GSV_NEAREST_IMPLEMENTATION
+#define GSV_NEAREST_STATIC
+#include "gsverse_nearest.h"
+
+#define TASKS 32          /* the top of the tree is split until this many subtrees remain */
+#define BLOCK 64          /* consecutive (sorted) queries a thread takes at once */
+#define ORDER_BITS 6      /* Morton grid of the query order: 2^6 cells per axis */
+#define MAX_THREADS 256
+
+static const char *CAPSULE = "gsverse_format.nearest._native.tree";
+
+/* ------------------------------------------------------------------ buffers */
+
+static int is_int64(const Py_buffer *b)
+{
+    const char *f = b->format ? b->format : "B";
+    if (*f == '=' || *f == '<' || *f == '@') f++;
+    return b->itemsize == 8 && (strcmp(f, "l") == 0 || strcmp(f, "q") == 0);
+}
+
+static int is_float64(const Py_buffer *b)
+{
+    const char *f = b->format ? b->format : "B";
+    if (*f == '=' || *f == '<' || *f == '@') f++;
+    return b->itemsize == 8 && strcmp(f, "d") == 0;
+}
+
+/* A C-contiguous buffer of `n` 8-byte items (n < 0: any multiple of `multiple`). */
+static int get(PyObject *o, Py_buffer *b, int writable, int is_float, Py_ssize_t n,
+               Py_ssize_t multiple, const char *name)
+{
+    int flags = PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0);
+    if (PyObject_GetBuffer(o, b, flags) < 0) return -1;
+    if (!(is_float ? is_float64(b) : is_int64(b))) {
+        PyErr_Format(PyExc_TypeError, "%s must be a %s buffer", name,
+                     is_float ? "float64" : "int64");
+        PyBuffer_Release(b);
+        return -1;
+    }
+    if ((n >= 0 && b->len != n * 8) || (n < 0 && (b->len / 8) % multiple != 0)) {
+        PyErr_Format(PyExc_ValueError, "%s has the wrong size", name);
+        PyBuffer_Release(b);
+        return -1;
+    }
+    return 0;
+}
+
+static void release(Py_buffer *bufs, int n)
+{
+    int i;
+    for (i = 0; i < n; i++) PyBuffer_Release(&bufs[i]);
+}
+
+/* ------------------------------------------------------------------ threads */
+
+typedef struct {
+    void (*work)(void *ctx, int64_t item);
+    void *ctx;
+    int64_t items;
+    int64_t counter;
+} pool;
+
+static void *pool_worker(void *arg)
+{
+    pool *p = (pool *)arg;
+    for (;;) {
+        int64_t i = __atomic_fetch_add(&p->counter, 1, __ATOMIC_RELAXED);
+        if (i >= p->items) break;
+        p->work(p->ctx, i);
+    }
+    return NULL;
+}
+
+/* work(ctx, i) for every i < items on up to `threads` threads; the calling thread takes part,
+ * so the work is done even when no thread can be started. */
+static void run_pool(void (*work)(void *, int64_t), void *ctx, int64_t items, int threads)
+{
+    pthread_t tid[MAX_THREADS];
+    int started = 0, i;
+    pool p;
+    p.work = work; p.ctx = ctx; p.items = items; p.counter = 0;
+    if (threads > MAX_THREADS) threads = MAX_THREADS;
+    if ((int64_t)threads > items) threads = (int)items;
+    for (i = 1; i < threads; i++) {
+        if (pthread_create(&tid[started], NULL, pool_worker, &p) != 0) break;
+        started++;
+    }
+    pool_worker(&p);
+    for (i = 0; i < started; i++) pthread_join(tid[i], NULL);
+}
+
+/* ------------------------------------------------------------------ build */
+
+typedef struct {
+    gsv_nearest_tree *t;
+    const double *V;
+    const int64_t *F;
+} build_ctx;
+
+static void build_one(void *ctx, int64_t i)
+{
+    build_ctx *c = (build_ctx *)ctx;
+    gsv_nearest_build_task(c->t, c->V, c->F, i);
+}
+
+static void tree_free(PyObject *capsule)
+{
+    gsv_nearest_tree *t = (gsv_nearest_tree *)PyCapsule_GetPointer(capsule, CAPSULE);
+    if (t) {
+        gsv_nearest_free(t);
+        PyMem_RawFree(t);
+    }
+}
+
+static PyObject *build(PyObject *self, PyObject *args)
+{
+    PyObject *oV, *oF, *oi, *capsule;
+    Py_buffer b[3];
+    double ratio;
+    int threads, failed = 0;
+    Py_ssize_t nv, nfaces, nf, k;
+    gsv_nearest_tree *t;
+    build_ctx c;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOdi", &oV, &oF, &oi, &ratio, &threads)) return NULL;
+    if (get(oV, &b[0], 0, 1, -1, 3, "vertices") < 0) return NULL;
+    if (get(oF, &b[1], 0, 0, -1, 3, "faces") < 0) { release(b, 1); return NULL; }
+    if (get(oi, &b[2], 0, 0, -1, 1, "idx") < 0) { release(b, 2); return NULL; }
+    nv = b[0].len / 24; nfaces = b[1].len / 24; nf = b[2].len / 8;
+    for (k = 0; k < 3 * nfaces && !failed; k++) {
+        int64_t v = ((const int64_t *)b[1].buf)[k];
+        failed = v < 0 || v >= nv;
+    }
+    for (k = 0; k < nf && !failed; k++) {
+        int64_t f = ((const int64_t *)b[2].buf)[k];
+        failed = f < 0 || f >= nfaces;
+    }
+    if (failed || nf == 0) {
+        release(b, 3);
+        PyErr_SetString(PyExc_ValueError, nf == 0 ? "no selectable faces" : "index out of range");
+        return NULL;
+    }
+    t = (gsv_nearest_tree *)PyMem_RawMalloc(sizeof *t);
+    if (!t || gsv_nearest_alloc(t, nf) < 0) {
+        PyMem_RawFree(t);
+        release(b, 3);
+        return PyErr_NoMemory();
+    }
+    c.t = t; c.V = (const double *)b[0].buf; c.F = (const int64_t *)b[1].buf;
+    Py_BEGIN_ALLOW_THREADS
+    {
+        int64_t n = gsv_nearest_build_top(t, c.V, c.F, (const int64_t *)b[2].buf, ratio, TASKS);
+        run_pool(build_one, &c, n, threads);
+        gsv_nearest_build_finish(t);
+    }
+    Py_END_ALLOW_THREADS
+    release(b, 3);
+    capsule = PyCapsule_New(t, CAPSULE, tree_free);
+    if (!capsule) {
+        gsv_nearest_free(t);
+        PyMem_RawFree(t);
+    }
+    return capsule;
+}
+
+/* ------------------------------------------------------------------ query order */
+
+static PyObject *sort_queries(PyObject *self, PyObject *args)
+{
+    PyObject *oP, *oo, *os;
+    Py_buffer b[3];
+    Py_ssize_t n, i;
+    int64_t *keys, *count, *order;
+    const double *P;
+    double *Ps;
+    const int64_t cells = (int64_t)1 << ORDER_BITS, n_codes = (int64_t)1 << (3 * ORDER_BITS);
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOO", &oP, &oo, &os)) return NULL;
+    if (get(oP, &b[0], 0, 1, -1, 3, "points") < 0) return NULL;
+    n = b[0].len / 24;
+    if (get(oo, &b[1], 1, 0, n, 1, "order") < 0) { release(b, 1); return NULL; }
+    if (get(os, &b[2], 1, 1, 3 * n, 1, "sorted points") < 0) { release(b, 2); return NULL; }
+    keys = (int64_t *)PyMem_RawMalloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
+    count = (int64_t *)PyMem_RawCalloc((size_t)n_codes + 1, sizeof(int64_t));
+    if (!keys || !count) {
+        PyMem_RawFree(keys); PyMem_RawFree(count);
+        release(b, 3);
+        return PyErr_NoMemory();
+    }
+    P = (const double *)b[0].buf; order = (int64_t *)b[1].buf; Ps = (double *)b[2].buf;
+    Py_BEGIN_ALLOW_THREADS
+    {
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        double inv[3] = {0.0, 0.0, 0.0};
+        int d, bit;
+        int64_t c;
+        for (i = 0; i < n; i++)
+            for (d = 0; d < 3; d++) {
+                lo[d] = gsv__min(lo[d], P[3 * i + d]);
+                hi[d] = gsv__max(hi[d], P[3 * i + d]);
+            }
+        for (d = 0; d < 3; d++)
+            if (hi[d] > lo[d]) inv[d] = ((double)cells - 1e-3) / (hi[d] - lo[d]);
+        for (i = 0; i < n; i++) {
+            int64_t code = 0;
+            for (d = 0; d < 3; d++) {
+                int64_t g = (int64_t)gsv__min(gsv__max((P[3 * i + d] - lo[d]) * inv[d], 0.0),
+                                              (double)cells - 1.0);
+                for (bit = 0; bit < ORDER_BITS; bit++)
+                    code |= ((g >> bit) & 1) << (3 * bit + d);
+            }
+            keys[i] = code;
+            count[code + 1]++;
+        }
+        for (c = 0; c < n_codes; c++) count[c + 1] += count[c];
+        for (i = 0; i < n; i++) order[count[keys[i]]++] = i;
+        for (i = 0; i < n; i++)
+            for (d = 0; d < 3; d++) Ps[3 * i + d] = P[3 * order[i] + d];
+    }
+    Py_END_ALLOW_THREADS
+    PyMem_RawFree(keys);
+    PyMem_RawFree(count);
+    release(b, 3);
+    Py_RETURN_NONE;
+}
+
+/* ------------------------------------------------------------------ queries */
+
+typedef struct {
+    const gsv_nearest_tree *t;
+    double margin;
+    const double *P;
+    const int64_t *order;
+    int64_t lo, hi;
+    int64_t *face;
+    double *distance, *closest, *bary;
+} query_ctx;
+
+static void query_block(void *ctx, int64_t blk)
+{
+    query_ctx *c = (query_ctx *)ctx;
+    const gsv_nearest_tree *t = c->t;
+    int64_t st_node[GSV_NEAREST_STACK], i, start = c->lo + blk * BLOCK;
+    double st_lb[GSV_NEAREST_STACK];
+    int64_t stop = start + BLOCK < c->hi ? start + BLOCK : c->hi;
+    for (i = start; i < stop; i++) {
+        const double *p = c->P + 3 * i;
+        double v, w, d2;
+        int64_t k = gsv_nearest_search(t, c->margin, p[0], p[1], p[2], st_node, st_lb,
+                                       &v, &w, &d2);
+        const double *r = t->rec + GSV_NEAREST_RECORD * k;
+        int64_t q = c->order[i];
+        c->face[q] = t->face[k];
+        c->distance[q] = sqrt(d2);
+        c->closest[3 * q] = r[0] + v * r[3] + w * r[6];
+        c->closest[3 * q + 1] = r[1] + v * r[4] + w * r[7];
+        c->closest[3 * q + 2] = r[2] + v * r[5] + w * r[8];
+        c->bary[3 * q] = gsv__max(1.0 - v - w, 0.0);
+        c->bary[3 * q + 1] = v;
+        c->bary[3 * q + 2] = w;
+    }
+}
+
+static PyObject *query(PyObject *self, PyObject *args)
+{
+    PyObject *cap, *oP, *oo, *of, *od, *oc, *ob;
+    Py_buffer b[6];
+    Py_ssize_t lo, hi, n, i;
+    double margin;
+    int threads, bad = 0;
+    query_ctx c;
+    (void)self;
+    if (!PyArg_ParseTuple(args, "OOOnndiOOOO", &cap, &oP, &oo, &lo, &hi, &margin, &threads,
+                          &of, &od, &oc, &ob)) return NULL;
+    c.t = (const gsv_nearest_tree *)PyCapsule_GetPointer(cap, CAPSULE);
+    if (!c.t) return NULL;
+    if (get(oP, &b[0], 0, 1, -1, 3, "points") < 0) return NULL;
+    n = b[0].len / 24;
+    if (get(oo, &b[1], 0, 0, n, 1, "order") < 0) { release(b, 1); return NULL; }
+    if (get(of, &b[2], 1, 0, n, 1, "face") < 0) { release(b, 2); return NULL; }
+    if (get(od, &b[3], 1, 1, n, 1, "distance") < 0) { release(b, 3); return NULL; }
+    if (get(oc, &b[4], 1, 1, 3 * n, 1, "closest") < 0) { release(b, 4); return NULL; }
+    if (get(ob, &b[5], 1, 1, 3 * n, 1, "barycentric") < 0) { release(b, 5); return NULL; }
+    c.order = (const int64_t *)b[1].buf;
+    for (i = 0; i < n && !bad; i++) bad = c.order[i] < 0 || c.order[i] >= n;
+    if (bad || lo < 0 || hi > n || lo > hi) {
+        release(b, 6);
+        PyErr_SetString(PyExc_ValueError, bad ? "order out of range" : "bad query range");
+        return NULL;
+    }
+    c.margin = margin; c.P = (const double *)b[0].buf; c.lo = lo; c.hi = hi;
+    c.face = (int64_t *)b[2].buf; c.distance = (double *)b[3].buf;
+    c.closest = (double *)b[4].buf; c.bary = (double *)b[5].buf;
+    Py_BEGIN_ALLOW_THREADS
+    run_pool(query_block, &c, (hi - lo + BLOCK - 1) / BLOCK, threads);
+    Py_END_ALLOW_THREADS
+    release(b, 6);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef methods[] = {
+    {"build", build, METH_VARARGS,
+     "build(V, F, idx, degenerate_ratio, threads): the BVH over faces F[idx] (a capsule)."},
+    {"sort_queries", sort_queries, METH_VARARGS,
+     "sort_queries(P, order, Ps): coarse Morton order of the points, and the sorted points."},
+    {"query", query, METH_VARARGS,
+     "query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric): "
+     "nearest faces of Ps[lo:hi], written to rows order[lo:hi] of the outputs."},
+    {NULL, NULL, 0, NULL}};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "_native",
+    "The exact nearest-triangle search in C (native/search/gsverse_nearest.h).", -1, methods,
+    NULL, NULL, NULL, NULL};
+
+PyMODINIT_FUNC PyInit__native(void) { return PyModule_Create(&module); }
