@@ -12,6 +12,8 @@ are area-weighted surface samples plus Gaussian noise with σ = 0.5 × the mean 
 
 Methods, timed side by side on the same points:
 
+* ``gsverse_format.nearest.nearest_triangles(method="native")``: the C search, which binding
+  uses (the whole call; it must give numba's results bit for bit).
 * ``gsverse_format.nearest.nearest_triangles(method="numba")``: the whole call (input checks,
   BVH build and queries); its BVH build alone; and its queries alone on a prebuilt tree. The
   first call of the process (numba import and compilation, or loading the on-disk cache) is
@@ -243,6 +245,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from gsverse_format.nearest import compiled as nearest_compiled
     from gsverse_format.nearest import nearest_triangles
+    from gsverse_format.nearest.native import search_threads
     nearest_compiled.warm_up()
     first_call = time.perf_counter() - t0
     threads = numba.get_num_threads()
@@ -261,6 +264,8 @@ def main(argv: list[str] | None = None) -> int:
     timed = {
         "bind": lambda: bind_local(cloud, mesh_b),
         "full": lambda: state.__setitem__("ref", nearest_triangles(p, v, f, method="numba")),
+        "native": lambda: state.__setitem__("native",
+                                            nearest_triangles(p, v, f, method="native")),
         "build": lambda: state.__setitem__("tree", nearest_compiled.build_tree(v, f, idx)),
         "query": lambda: nearest_compiled.query_tree(state["tree"], p),
     }
@@ -294,13 +299,20 @@ def main(argv: list[str] | None = None) -> int:
                    for k in ("face", "distance", "closest", "barycentric"))
         exact += f"; {'identical' if same else 'DIFFERS'} to numpy reference on {n_ver:,} pts"
     med, best = _fmt_rate(t["full"], n)
-    rows.append(["ours, `nearest_triangles` (checks + BVH build + queries)", med, best, threads,
-                 exact, "0 (reference)", "100%", _load(t["full"])])
+    rows.append(["ours, numba `nearest_triangles(method=\"numba\")` (checks + BVH build + "
+                 "queries)", med, best, threads, exact, "0 (reference)", "100%", _load(t["full"])])
+    same_c = all(np.array_equal(getattr(state["native"], k), getattr(ref, k))
+                 for k in ("face", "distance", "closest", "barycentric"))
+    med, best = _fmt_rate(t["native"], n)
+    rows.append(["ours, C `nearest_triangles(method=\"native\")` (checks + BVH build + queries; "
+                 "what `bind_local` runs)", med, best, search_threads(),
+                 "identical to numba's" if same_c else "DIFFERS from numba's", "0", "100%",
+                 _load(t["native"])])
     med, best = _fmt_rate(t["bind"], n)
     rows.append(["ours, `bind_local` (the binding of `gsverse-convert --mesh`: search + anchors)",
                  med, best, threads, "same faces", "–", "–", _load(t["bind"])])
     notes.append(f"ours: `bind_local` {t['bind'].median:.3f} s, of which the search "
-                 f"{t['full'].median:.3f} s and the anchors (frames, barycentrics, offsets, "
+                 f"{t['native'].median:.3f} s (the C search) and the anchors (frames, barycentrics, offsets, "
                  f"local rotations) the rest")
     med, best = _fmt_rate(t["query"], n)
     rows.append(["ours, queries only (BVH prebuilt)", med, best, threads, "same", "0", "100%",

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import DTypeLike
 
 from . import quaternion as quat
-from .frames import LocalFrames, local_frames
+from .frames import LocalFrames, local_frames, regular_mask
 from .model import TriangleMesh
 
 __all__ = ["DerivedAnchors", "DERIVE_CHUNK", "derive_local", "degenerate_splats"]
@@ -45,8 +45,8 @@ class DerivedAnchors:
 def degenerate_splats(mesh: TriangleMesh, face: np.ndarray,
                       frames: LocalFrames | None = None) -> np.ndarray:
     """Indices of the splats whose face (``face``, in range) is degenerate at rest."""
-    frames = local_frames(mesh.triangles()) if frames is None else frames
-    return np.flatnonzero(~frames.regular[np.asarray(face, dtype=np.intp)])
+    regular = regular_mask(mesh.triangles()) if frames is None else frames.regular
+    return np.flatnonzero(~regular[np.asarray(face, dtype=np.intp)])
 
 
 def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,

@@ -23,7 +23,7 @@ EPS_DEGENERATE = 1e-6
 GAMES_EPS = 1e-8
 
 __all__ = ["EPS_DEGENERATE", "GAMES_EPS", "LocalFrames", "local_frames", "games_frames",
-           "perpendicular_unit", "degenerate_mask"]
+           "perpendicular_unit", "degenerate_mask", "regular_mask"]
 
 
 def _norm(v: np.ndarray) -> np.ndarray:
@@ -58,6 +58,17 @@ def _edges(tri: np.ndarray):
     squared = np.stack([_dot(e1, e1), _dot(e2, e2), _dot(e3, e3)], axis=-1)
     longest2 = squared.max(axis=-1)
     return e1, e2, e3, cross, area2, squared, longest2
+
+
+def _regular(area2: np.ndarray, longest2: np.ndarray) -> np.ndarray:
+    return area2 > EPS_DEGENERATE * longest2
+
+
+def regular_mask(tri: np.ndarray) -> np.ndarray:
+    """(F,) bool: :attr:`LocalFrames.regular` of triangles (F, 3, 3) without the frames (a
+    third of the work: the edges and the doubled area only)."""
+    _, _, _, _, area2, _, longest2 = _edges(np.asarray(tri, dtype=np.float64))
+    return _regular(area2, longest2)
 
 
 def degenerate_mask(tri: np.ndarray) -> np.ndarray:
@@ -103,7 +114,7 @@ def local_frames(tri: np.ndarray) -> LocalFrames:
     tri = np.asarray(tri, dtype=np.float64)
     e1, e2, e3, cross, area2, squared, longest2 = _edges(tri)
     f = tri.shape[0]
-    regular = area2 > EPS_DEGENERATE * longest2
+    regular = _regular(area2, longest2)
     point = longest2 == 0.0
     line = ~regular & ~point
 

@@ -2,13 +2,14 @@
 
     python -m gsverse_format.precompile [--jobs N] [--quiet | --json]
 
-The compiled paths (the nearest-triangle search of binding, the per-frame remap, the CPU
-renderer) are numba kernels cached on disk (``cache=True``: in ``__pycache__`` beside each
+The compiled paths (the per-frame remap, the CPU renderer, and the numba nearest-triangle
+search, which binding uses where the C search of :mod:`gsverse_format.nearest.native` was not
+built) are numba kernels cached on disk (``cache=True``: in ``__pycache__`` beside each
 module, or under ``NUMBA_CACHE_DIR``; a folder that cannot be written falls back to numba's
-per-user cache). Nothing compiled ships with the package, because numba's machine code is
+per-user cache). Nothing numba compiles ships with the package, because its machine code is
 specific to the CPU and the numba version. Without this step the first job of a size that
-takes the compiled path compiles what it uses there and then: about 15 s for the search of
-a 100k-splat conversion on a 2-core machine, where the conversion itself takes about 1.5 s.
+takes the compiled path compiles what it uses there and then: about 15 s for the numba search
+of a 100k-splat conversion on a 2-core machine, where the conversion itself takes about 1.5 s.
 This command does that once, at install time (the README's set-up runs it), so that the first
 real job runs as fast as later ones.
 
@@ -16,7 +17,7 @@ Each group of kernels runs the package's own entry points on a tiny problem with
 backend forced, so that the signatures compiled are those real jobs use (the tests check that
 a conversion, a validation, a pose and a render after this command compile nothing):
 
-* ``nearest``: :func:`gsverse_format.binding.bind_local` (the search and its BVH);
+* ``nearest``: :func:`gsverse_format.binding.bind_local` (the numba search and its BVH);
 * ``remap-sorted-local``, ``remap-sorted-games`` and ``remap-unsorted``:
   :class:`gsverse_format.remapping.fast.FastRemapper` for the ``local`` profile under both
   laws, with and without rotations, and ``games``, on float32 and float64 vertices, with the

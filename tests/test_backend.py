@@ -98,10 +98,14 @@ def test_small_jobs_run_the_reference_under_auto(monkeypatch):
 
 
 def test_nearest_dispatch_by_size(monkeypatch):
+    """Under auto the C search runs at any size; where it was not built, small jobs run the
+    reference and larger ones numba."""
     calls = []
     monkeypatch.setattr("gsverse_format.nearest.dispatch.nearest_triangles_numpy",
                         lambda *a, **k: calls.append("numpy"))
     p, v, f = np.zeros((3, 3)), np.eye(3), np.array([[0, 1, 2]])
+    assert nearest_triangles(p, v, f).face.tolist() == [0, 0, 0] and calls == []
+    monkeypatch.setattr("gsverse_format.nearest.dispatch.native_available", lambda: False)
     nearest_triangles(p, v, f)
     assert calls == ["numpy"]                          # 4 points + faces, far below the threshold
     assert backend.NEAREST_NUMPY_BELOW > 3 + 1

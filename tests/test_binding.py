@@ -6,7 +6,7 @@ import pytest
 
 from gsverse_format.binding import bind_local
 from gsverse_format.errors import BindingError
-from gsverse_format.frames import degenerate_mask
+from gsverse_format.frames import degenerate_mask, local_frames, regular_mask
 from gsverse_format.model import Anchoring, TriangleMesh
 from gsverse_format.nearest import closest_points_on_triangles
 from gsverse_format.remapping.reference import remap
@@ -64,3 +64,18 @@ def test_binding_far_splats_and_edge_feet():
     assert np.any(b < 0) or np.any(b.sum(axis=1) > 1)
     r = remap(Anchoring(mesh, bound.anchors))
     assert np.max(np.abs(r.means - splats.means)) < 1e-5
+
+
+def test_regular_mask_is_the_frames_regularity():
+    """``regular_mask`` (what compact anchors and the writer check) decides as ``local_frames``
+    does: regular triangles, slivers at the threshold, segments, points and non-finite ones."""
+    rng = np.random.default_rng(3)
+    tri = rng.normal(size=(400, 3, 3))
+    tri[:40, 2] = tri[:40, 0]                                      # two corners equal
+    tri[40:50] = 0.0                                               # a point
+    tri[50:60, 1] = 0.5 * (tri[50:60, 0] + tri[50:60, 2])          # collinear
+    tri[60:70, 2] = tri[60:70, 1] + 1e-9 * rng.normal(size=(10, 3))  # slivers near the bound
+    tri[70, 0, 0] = np.nan
+    want = local_frames(tri).regular
+    assert np.array_equal(regular_mask(tri), want) and 0 < want.sum() < len(tri)
+    assert not want[70] and not regular_mask(tri)[70]

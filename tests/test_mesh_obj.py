@@ -3,6 +3,7 @@ vertices and faces for every file in the plain subset, and None (trimesh reads i
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 import pytest
@@ -107,3 +108,41 @@ def test_read_mesh_uses_it_without_trimesh(tmp_path) -> None:
     vertices, faces = _trimesh(path.read_bytes())
     np.testing.assert_array_equal(mesh.vertices, vertices.astype(np.float32))
     np.testing.assert_array_equal(mesh.faces, faces.astype(np.uint32))
+
+
+_LINES = [b"v 0 0 0", b"v\t1 0 0 # c", b"v 0 1 0#x", b"f 1 2 3", b"f\t1 2 3 # tail", b"#", b"# c",
+          b"", b"\r", b"vt 0 0", b"vt", b"vn 0 0 1\r", b"vp 1", b"o", b"o thing", b"s off", b"s\r",
+          b"s\t1", b"g part", b"v", b"f", b"f\r", b"vx 1", b"os", b"l 1 2", b"usemtl m", b"vt\t0",
+          b"f 1//1 2//1 3//1", b"f 1/1 2/1 3/1", b"v 1 2 3 4 5 6", b"x"]
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_line_classifier_equals_the_regular_expressions(seed: int) -> None:
+    """The numpy record split (:func:`_records`) gives the regular expressions' texts and
+    verdicts, for every mix of the statements the subset admits and those it refuses."""
+    from gsverse_format.io.obj import _INDENTED, _records, _records_regex
+
+    rng = np.random.default_rng(seed)
+    # mostly admitted lines, so that files of only admitted lines come up often
+    weights = np.array([8.0 if not any(x.startswith(b) for b in (b"g", b"l", b"u", b"x"))
+                        and x not in (b"v", b"f", b"f\r", b"vx 1", b"os") else 0.5
+                        for x in _LINES])
+    lines = [_LINES[i] for i in rng.choice(len(_LINES), rng.integers(0, 12),
+                                            p=weights / weights.sum())]
+    end = [b"", b"\n", b"\r\n"][seed % 3]
+    data = (b"\r\n" if seed % 5 == 0 else b"\n").join(lines) + end
+    fast, regex = _records(data), _records_regex(data)
+    assert fast is not _INDENTED
+    if regex is None:
+        assert fast is None, data
+        return
+    assert isinstance(fast, tuple), data
+    squeeze = lambda t: re.sub(rb"[ \t]+", b" ", t)   # noqa: E731
+    assert [squeeze(x) for x in fast] == [squeeze(x) for x in regex], data
+
+
+def test_indented_files_take_the_regular_expressions() -> None:
+    from gsverse_format.io.obj import _INDENTED, _records
+
+    assert _records(b"v 0 0 0\n  v 1 0 0\n") is _INDENTED
+    assert _records(b"\tf 1 2 3\n") is _INDENTED

@@ -40,6 +40,13 @@ write_splat_ply(SplatCloud(points.astype(np.float32), rot.astype(np.float32),
                 f"{folder}/splats.ply")
 out = f"{folder}/out.glb"
 assert convert(["-q", "-w", f"{folder}/splats.ply", out, "--mesh", f"{folder}/mesh.ply"]) == 0
+# the same conversion with the numba search, which binding runs where the C one was not built
+from gsverse_format.backend import set_backend
+set_backend("numba")
+assert convert(["-q", "-w", f"{folder}/splats.ply", f"{folder}/numba.glb", "--mesh",
+                f"{folder}/mesh.ply"]) == 0
+set_backend("auto")
+assert open(out, "rb").read() == open(f"{folder}/numba.glb", "rb").read()
 assert render(["-q", "-w", out, f"{folder}/posed.png", "--deform", "twist=30",
                "--size", "48x48"]) == 0
 (prim,) = read_asset(out).primitives

@@ -68,6 +68,18 @@ def _numbers(text: bytes, dtype: type) -> tuple[np.ndarray, np.ndarray] | None:
     newlines = np.flatnonzero(raw == ord("\n"))
     before = np.concatenate([[0], np.cumsum(starts, dtype=np.int64)])   # numbers before a byte
     counts = before[np.append(newlines, raw.size)] - before[np.concatenate([[0], newlines + 1])]
+    if dtype is np.int64:
+        # numpy's C parser: 10x faster than converting the tokens (60 -> 7 ms for 300k
+        # corners). It refuses a token that is not a whole decimal number; the token
+        # conversion below then decides, as it does when the count differs. (Where it
+        # accepts a number the conversion refuses, one beyond int64, it saturates, and the
+        # index range check turns the file down all the same.)
+        try:
+            fast = np.fromstring(text, dtype=np.int64, sep=" ")
+        except ValueError:
+            fast = None
+        if fast is not None and fast.size == int(counts.sum()):
+            return fast, counts
     tokens = text.split()
     try:
         values: np.ndarray = np.array(tokens, dtype=dtype) if tokens else np.zeros(0, dtype)
@@ -97,12 +109,81 @@ def _triangulate(corners: np.ndarray, counts: np.ndarray) -> np.ndarray:
     return corners[tri]
 
 
+def _records_regex(data: bytes) -> tuple[bytes, bytes] | None:
+    """The ``v`` and the ``f`` records' texts (one record a line, comments cut), or None when
+    a statement lies outside the subset: the reference of :func:`_records`."""
+    if _OTHER.search(data) is not None:
+        return None
+    return b"\n".join(_VERTEX.findall(data)), b"\n".join(_FACE.findall(data))
+
+
+_INDENTED = object()
+_B = {c: ord(c) for c in " \t\r\n#vfotnps"}
+
+
+def _records(data: bytes) -> tuple[bytes, bytes] | None | object:
+    """:func:`_records_regex` for files whose lines all start with their keyword, decided on
+    the bytes with numpy (about four times faster: 33 against 124 ms for 100k faces): the
+    texts the regular expressions' ``findall`` give, up to the blanks after the keyword, or
+    None where they find a statement outside the subset. ``_INDENTED`` when a line starts
+    with a blank (the regular expressions then decide)."""
+    raw = np.frombuffer(data, np.uint8)
+    n = raw.size
+    nl = np.flatnonzero(raw == _B["\n"])
+    starts = np.concatenate([[0], nl + 1])
+    ends = np.append(nl, n)
+    if starts[-1] == n:                        # nothing after the last newline
+        starts, ends = starts[:-1], ends[:-1]
+    length = ends - starts
+    pad = np.concatenate([raw, np.zeros(3, np.uint8)])
+    c0 = np.where(length >= 1, pad[starts], 0)
+    c1 = np.where(length >= 2, pad[starts + 1], 0)
+    c2 = np.where(length >= 3, pad[starts + 2], 0)
+    if np.any((c0 == _B[" "]) | (c0 == _B["\t"])):
+        return _INDENTED
+    blank1 = (c1 == _B[" "]) | (c1 == _B["\t"])
+    vrec = (c0 == _B["v"]) & blank1
+    frec = (c0 == _B["f"]) & blank1
+    ok = ((length == 0) | ((length == 1) & (c0 == _B["\r"])) | (c0 == _B["#"]) | vrec | frec
+          | ((c0 == _B["v"]) & ((c1 == _B["t"]) | (c1 == _B["n"]) | (c1 == _B["p"]))
+             & ((length == 2) | (c2 == _B[" "]) | (c2 == _B["\t"]) | (c2 == _B["\r"])))
+          | (((c0 == _B["o"]) | (c0 == _B["s"]))
+             & ((length == 1) | blank1 | (c1 == _B["\r"]))))
+    if not ok.all():
+        return None
+    cut = ends.copy()                          # a record ends at its line's first '#'
+    hashes = np.flatnonzero(raw == _B["#"])
+    if hashes.size:
+        line = np.searchsorted(starts, hashes, side="right") - 1
+        first_line, first = np.unique(line, return_index=True)
+        cut[first_line] = np.minimum(cut[first_line], hashes[first])
+
+    def text(rec: np.ndarray) -> bytes:
+        if not rec.any():
+            return b""
+        delta = np.zeros(n + 1, np.int8)
+        delta[starts[rec] + 2] = 1
+        delta[cut[rec]] -= 1
+        keep = np.cumsum(delta[:n], dtype=np.int8).astype(bool)
+        sep = ends[rec]
+        keep[sep[sep < n]] = True              # the newline after each record
+        out = raw[keep].tobytes()
+        return out[:-1] if out.endswith(b"\n") else out
+
+    return text(vrec), text(frec)
+
+
 def read_obj_triangles(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     """``(vertices (V, 3) float64, faces (F, 3) int64)`` of an OBJ in the plain subset (see
     the module docstring), or None when the file needs trimesh's reader."""
-    if _OTHER.search(data) is not None:
+    records = _records(data)
+    if records is _INDENTED:
+        records = _records_regex(data)
+    if records is None:
         return None
-    parsed = _numbers(b"\n".join(_VERTEX.findall(data)), np.float64)
+    assert isinstance(records, tuple)
+    vertex_text, face_text = records
+    parsed = _numbers(vertex_text, np.float64)
     if parsed is None:
         return None
     values, counts = parsed
@@ -110,7 +191,6 @@ def read_obj_triangles(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     width = int(counts[0]) if counts.size else 3
     vertices = values.reshape(-1, width)[:, :3]
-    face_text = b"\n".join(_FACE.findall(data))
     if b"/" in face_text:
         if _TEXTURED.search(face_text) or _ATTRIBUTES.search(data):
             return None
