@@ -4,7 +4,10 @@ Two computations have a compiled implementation beside their numpy reference:
 
 * the exact nearest-triangle search, :func:`gsverse_format.nearest.nearest_triangles`
   (reference :mod:`gsverse_format.nearest.reference`, compiled
-  :mod:`gsverse_format.nearest.compiled`; identical results, bit for bit);
+  :mod:`gsverse_format.nearest.compiled`; identical results, bit for bit). It has a third
+  implementation, in C (:mod:`gsverse_format.nearest.native`), which ``"auto"`` runs before
+  this module's choice whenever it was built and neither :func:`set_backend` nor
+  ``GSVERSE_BACKEND`` chose: the small-job rule below applies where it was not built;
 * the per-frame float32 remap, :class:`gsverse_format.remapping.fast.FastRemapper` and
   :func:`gsverse_format.remapping.fast.remap_auto` (reference
   :mod:`gsverse_format.remapping.reference`, compiled :mod:`gsverse_format.remapping.compiled`;

@@ -34,6 +34,7 @@ from __future__ import annotations
 import os
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
@@ -201,8 +202,8 @@ def convert(input_path: str | os.PathLike[str], output_path: str | os.PathLike[s
         asset = _anchor(result, options, progress, summary)
     asset.frame = result.frame   # the source's, without the frame change: the output records it
     del result   # the source's splats: the asset holds its own (sorted) copies
-    finish_physics(asset, options, summary)
-    return _finish(asset, output_path, options, protect, summary, progress, start)
+    reports = finish_physics(asset, options, summary)   # computed while the output is written
+    return _finish(asset, output_path, options, protect, summary, progress, start, reports)
 
 
 def load_source(source: str, input_path: str | os.PathLike[str], mesh_path: str | None = None,
@@ -405,8 +406,9 @@ def read_input(path: str | os.PathLike[str], *, frame_change: bool = True,
 
 def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
             protect: tuple[str, ...], summary: ConvertSummary, progress: Progress,
-            start: float) -> ConvertSummary:
-    """Step 7: fill the summary and write ``asset``."""
+            start: float, reports: Callable[[], None] | None = None) -> ConvertSummary:
+    """Step 7: fill the summary and write ``asset``; then ``reports()``, which completes the
+    anchor meshes' manifold reports (:func:`gsverse_format.scene.finish_physics`)."""
     summary.splats = asset.splat_count()
     summary.anchored = sum(len(p.splats) for p in asset.anchored)
     summary.static = sum(len(p.splats) for p in asset.static)
@@ -449,6 +451,8 @@ def _finish(asset: SplatAsset, output_path: str, options: ConvertOptions,
     progress.stage(f"writing {os.path.basename(output_path)}")
     write_asset(asset, output_path, frame_change=options.frame_change, protect=protect,
                 bake_poses=poses, **encoding)
+    if reports is not None:
+        reports()
     progress.close()
     summary.output_bytes = os.path.getsize(output_path)
     summary.seconds = time.perf_counter() - start

@@ -208,18 +208,27 @@ def prepare_mesh(mesh: TriangleMesh, options: ConvertOptions, summary: ConvertSu
     return repaired
 
 
-def finish_physics(asset: SplatAsset, options: ConvertOptions, summary: ConvertSummary) -> None:
+def finish_physics(asset: SplatAsset, options: ConvertOptions,
+                   summary: ConvertSummary) -> Callable[[], None]:
     """The manifold report of each written anchor mesh into ``summary.anchor_meshes``,
     ``--collider`` meshes into ``asset.colliders``, ``--physics`` (each such object's
     :class:`~gsverse_format.model.Physics`, with a hull collider whether or not ``--collider``
     asks for one) and ``--ground`` (:func:`gsverse_format.physics.ground_box` under every
-    splat)."""
+    splat).
+
+    The manifold reports are computed on threads of their own
+    (:class:`~gsverse_format.manifold.BackgroundReport`) while the caller goes on (writes the
+    output); each entry of ``summary.anchor_meshes`` has the report's keys, set to None until
+    the returned function is called, which waits for the reports and fills them in."""
+    from dataclasses import fields
+
     from .convert_options import physics_request
-    from .manifold import collider, manifold_report
+    from .manifold import BackgroundReport, ManifoldReport, collider
 
     kinds, masses = physics_request(summary.input, options)
     scene = bool(options.meshes)
     seen: dict[int, Collider | None] = {}
+    pending: list[tuple[dict[str, Any], BackgroundReport]] = []
     for prim in asset.anchored:
         assert prim.anchoring is not None
         mesh = prim.anchoring.mesh
@@ -227,7 +236,9 @@ def finish_physics(asset: SplatAsset, options: ConvertOptions, summary: ConvertS
         kind = kinds.get(name) if name is not None else None
         if id(mesh) not in seen:
             entry: dict[str, Any] = {"name": prim.name, "faces": mesh.face_count,
-                                     **manifold_report(mesh).as_dict(), "collider": None}
+                                     **dict.fromkeys(f.name for f in fields(ManifoldReport)),
+                                     "collider": None}
+            pending.append((entry, BackgroundReport(mesh)))
             made = None
             hull_kind = options.collider or ("hull" if kind is not None else None)
             if hull_kind is not None:
@@ -258,6 +269,12 @@ def finish_physics(asset: SplatAsset, options: ConvertOptions, summary: ConvertS
         asset.ground = Ground(size, centre)
         summary.ground = {"size": list(size), "translation": list(centre),
                           "top": centre[1] + size[1] / 2}
+
+    def complete() -> None:
+        for entry, report in pending:
+            entry.update(report.result().as_dict())
+
+    return complete
 
 
 def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],

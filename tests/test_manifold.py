@@ -12,7 +12,8 @@ from gsverse_format.validators import validate_file
 from gsverse_format.cli.convert import main
 from gsverse_format.io.gltf import read_gltf
 from gsverse_format.io.mesh import read_mesh
-from gsverse_format.manifold import collider, make_watertight, manifold_report
+from gsverse_format.manifold import (BackgroundReport, collider, make_watertight,
+                                     manifold_report)
 from gsverse_format.model import TriangleMesh
 from gsverse_format.nearest import closest_points_on_triangles, nearest_triangles
 
@@ -63,6 +64,25 @@ def test_report_agrees_with_manifold3d():
     r = manifold_report(opened)
     assert not r.closed_manifold and not _is_manifold(opened) and r.boundary_edges > 0
     assert "boundary edges" in r.why_not()
+
+
+def test_background_report_is_the_report_and_raises_what_it_raised():
+    """The report the convert pipeline computes while it writes its output: the same report,
+    and an error inside it reaches the caller that waits."""
+    closed = read_mesh(CAPSULE / "mesh.obj")
+    opened = TriangleMesh(closed.vertices, closed.faces[24:])
+    pending = [BackgroundReport(m) for m in (closed, opened)]
+    assert [p.result() for p in pending] == [manifold_report(closed), manifold_report(opened)]
+    assert pending[0].result() == manifold_report(closed)          # asked again: the same
+
+    class Broken(TriangleMesh):
+        @property
+        def face_count(self) -> int:
+            raise RuntimeError("no faces today")
+
+    broken = BackgroundReport(Broken(closed.vertices, closed.faces))
+    with pytest.raises(RuntimeError, match="no faces today"):
+        broken.result()
 
 
 def test_reconstructed_capsule_is_reported(tmp_path, capsys):
