@@ -18,9 +18,7 @@
  *   for i in 0..n-1 (any thread, any order):  gsv_nearest_build_task(&t, V, F, i);
  *   gsv_nearest_build_finish(&t);
  *   for each query point p (any thread; each thread its own stack of GSV_NEAREST_STACK):
- *       k = gsv_nearest_search(&t, margin, px, py, pz, hint, st_node, st_lb, &v, &w, &d2);
- *       (hint: a position to evaluate first, such as the previous nearby query's k, or -1;
- *       the answer does not depend on it, only the time)
+ *       k = gsv_nearest_search(&t, margin, px, py, pz, st_node, st_lb, &v, &w, &d2);
  *       face t.face[k], closest point a + v ab + w ac of record k, distance sqrt(d2)
  *   gsv_nearest_free(&t);
  *
@@ -102,7 +100,7 @@ GSV_NEAREST_DEF void gsv_nearest_record(const double *V, const int64_t *F, int64
 GSV_NEAREST_DEF double gsv_nearest_closest(const double *r, double px, double py, double pz,
                                            double *v, double *w);
 GSV_NEAREST_DEF int64_t gsv_nearest_search(const gsv_nearest_tree *t, double margin,
-                                           double px, double py, double pz, int64_t hint,
+                                           double px, double py, double pz,
                                            int64_t *st_node, double *st_lb,
                                            double *v, double *w, double *d2);
 
@@ -554,7 +552,7 @@ static double gsv__centre_dist2(const float *b, double px, double py, double pz)
 #define GSV__SQRT_GAP (1.0 + 4e-15)
 
 GSV_NEAREST_DEF int64_t gsv_nearest_search(const gsv_nearest_tree *t, double margin,
-                                           double px, double py, double pz, int64_t hint,
+                                           double px, double py, double pz,
                                            int64_t *st_node, double *st_lb,
                                            double *pv, double *pw, double *pd2)
 {
@@ -563,18 +561,6 @@ GSV_NEAREST_DEF int64_t gsv_nearest_search(const gsv_nearest_tree *t, double mar
     double best = INFINITY, best2 = INFINITY, bv = 0.0, bw = 0.0, thr2 = INFINITY;
     int64_t bface = INT64_MAX, bpos = -1, node = t->root;
     int sp = 0;
-    if (hint >= 0 && hint < nf) {
-        /* a face evaluated before the descent (the previous, nearby query's answer): its
-         * distance bounds the search from the start. It is one of the faces the search
-         * evaluates anyway, by the same rules, so the answer does not change. */
-        double v, w, d2 = gsv_nearest_closest(t->rec + GSV_NEAREST_RECORD * hint, px, py, pz,
-                                              &v, &w);
-        double d = sqrt(d2), m = d + margin * (qabs + d);
-        if (d == d) {
-            best = d; best2 = d2; bface = t->face[hint]; bpos = hint; bv = v; bw = w;
-            thr2 = m * m;
-        }
-    }
     for (;;) {
         if (node >= 0) {
             const float *cb = t->cbox + 12 * node;

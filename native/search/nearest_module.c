@@ -265,12 +265,12 @@ static void query_block(void *ctx, int64_t blk)
     const gsv_nearest_tree *t = c->t;
     int64_t st_node[GSV_NEAREST_STACK], i, start = c->lo + blk * BLOCK;
     double st_lb[GSV_NEAREST_STACK];
-    int64_t stop = start + BLOCK < c->hi ? start + BLOCK : c->hi, k = -1;
+    int64_t stop = start + BLOCK < c->hi ? start + BLOCK : c->hi;
     for (i = start; i < stop; i++) {
         const double *p = c->P + 3 * i;
         double v, w, d2;
-        /* the points are in Morton order: the previous point's face starts the bound */
-        k = gsv_nearest_search(t, c->margin, p[0], p[1], p[2], k, st_node, st_lb, &v, &w, &d2);
+        int64_t k = gsv_nearest_search(t, c->margin, p[0], p[1], p[2], st_node, st_lb,
+                                       &v, &w, &d2);
         const double *r = t->rec + GSV_NEAREST_RECORD * k;
         int64_t q = c->order[i];
         c->face[q] = t->face[k];
