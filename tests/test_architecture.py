@@ -20,12 +20,15 @@ ALIASES = {"converters": "gsverse_format.converters", "validators": "gsverse_for
 
 
 def package_modules() -> dict[str, tuple[Path, bool]]:
-    """Module name -> (source file, is a package) for every module of the three folders."""
+    """Module name -> (source file, is a package) for every module of the three folders; a
+    compiled extension counts by its type stub (``nearest/_native.pyi``), whose imports are
+    those of its interface."""
     modules: dict[str, tuple[Path, bool]] = {}
     for root, folder in ROOTS.items():
-        for path in sorted(folder.rglob("*.py")):
+        for path in sorted([*folder.rglob("*.py"), *folder.rglob("*.pyi")]):
             rel = path.relative_to(folder).with_suffix("")
-            if "__pycache__" in rel.parts:
+            if "__pycache__" in rel.parts or (path.suffix == ".pyi"
+                                               and path.with_suffix(".py").exists()):
                 continue
             parts = list(rel.parts)
             package = parts[-1] == "__init__"

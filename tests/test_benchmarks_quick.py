@@ -22,9 +22,10 @@ def test_binding_benchmark_quick():
     text = out.stdout
     assert "| method | Mpts/s (median) | Mpts/s (best) | threads | exact? |" in text
     rows = [line for line in text.splitlines() if line.startswith("| ours")]
-    assert len(rows) == 3
-    assert "identical to numpy reference" in rows[0]
-    assert "`bind_local`" in rows[1] and "ours: `bind_local`" in text
+    assert len(rows) == 4
+    assert "numba" in rows[0] and "identical to numpy reference" in rows[0]
+    assert "native" in rows[1] and "identical to numba's" in rows[1]
+    assert "`bind_local`" in rows[2] and "ours: `bind_local`" in text
     assert "ratio ours / Open3D" in text
 
 
