@@ -519,7 +519,7 @@ def query_tree(tree: Tree | None, points: ArrayLike, *, chunk: int = 65536,
     """
     P = np.ascontiguousarray(points, dtype=np.float64)
     n = P.shape[0]
-    res = NearestResult(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n), np.empty((n, 3)))
+    res = NearestResult.allocate(n)
     if n == 0:
         if progress is not None:
             progress(0, 0)

@@ -92,7 +92,7 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
         raise ImportError(native_unavailable_reason())
     P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
     n = P.shape[0]
-    res = NearestResult(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n), np.empty((n, 3)))
+    res = NearestResult.allocate(n)
     if n == 0:
         if progress is not None:
             progress(0, 0)

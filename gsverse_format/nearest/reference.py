@@ -91,6 +91,11 @@ class NearestResult:
     def __len__(self) -> int:
         return int(self.face.shape[0])
 
+    @classmethod
+    def allocate(cls, n: int) -> "NearestResult":
+        """Uninitialised arrays for ``n`` results, for a search that fills every row."""
+        return cls(np.empty(n, np.int64), np.empty((n, 3)), np.empty(n), np.empty((n, 3)))
+
 
 # --------------------------------------------------------------------------- point–triangle
 
