@@ -184,3 +184,51 @@ def test_no_tbb_clash_with_pymeshlab():
     assert layer in ("omp", "tbb", "workqueue")
     if layer == "omp":
         assert "TBB" not in proc.stderr, proc.stderr
+
+
+def test_without_512_bit_vectors():
+    """Every AVX-512, AVX10 and evex512 feature that is on goes off; nothing else changes."""
+    features = ("+64bit,+avx2,+avx512f,-avx512fp16,+avx512vl,+evex512,+avx10.1-512,"
+                "+avxvnni,+fma,-amx-tile")
+    assert backend.without_512_bit_vectors(features) == (
+        "+64bit,+avx2,-avx512f,-avx512fp16,-avx512vl,-evex512,-avx10.1-512,+avxvnni,+fma,"
+        "-amx-tile")
+    assert backend.without_512_bit_vectors("+sse2,+avx2") == "+sse2,+avx2"
+    assert backend.without_512_bit_vectors("") == ""
+
+
+_FEATURES = r"""
+from gsverse_format.backend import configure_numba
+configure_numba()
+import numba
+from numba.core.codegen import get_host_cpu_features
+print(repr(numba.config.CPU_FEATURES))
+print(repr(get_host_cpu_features()))
+"""
+
+
+@pytest.mark.parametrize("given", [None, "+sse2,+avx2"])
+def test_kernels_compile_without_avx512(given):
+    """configure_numba turns AVX-512 off for numba's code (see "Vector width" in the backend's
+    docstring) on a host that has it, and leaves a feature list set in the environment alone."""
+    import ast
+    import os
+    import subprocess
+    import sys
+
+    if not numba_available():
+        pytest.skip("numba not installed")
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_FEATURES", "NUMBA_CPU_NAME")}
+    if given:
+        env["NUMBA_CPU_FEATURES"] = given
+    proc = subprocess.run([sys.executable, "-c", _FEATURES], env=env, capture_output=True,
+                          text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    chosen, host = (ast.literal_eval(line) for line in proc.stdout.split("\n")[-3:-1])
+    if given:
+        assert chosen == given
+    elif "+avx512f" in host.split(","):
+        assert chosen == backend.without_512_bit_vectors(host) and "+avx512f" not in chosen
+        assert "+avx2" in chosen.split(",")
+    else:
+        assert chosen is None
