@@ -2,7 +2,8 @@
 
 manifold3d's constructor, given 100k copies of one triangle or the fan of one polygon of many
 corners, runs for minutes in native code that holds the interpreter (no signal handler runs).
-The edge counts decide those meshes in numpy first (``manifold._edges_closed``)."""
+The manifold report decides in numpy alone (edge counts, then half-edges), and --watertight
+asks manifold3d only after the edge counts (``manifold._edges_closed``)."""
 from __future__ import annotations
 
 import json
@@ -68,7 +69,7 @@ def test_manifold_report_decides_far_from_manifold_meshes_in_numpy():
     assert not report.closed_manifold and report.nonmanifold_edges == 3
     box = trimesh.creation.box()
     closed = manifold_report(TriangleMesh(box.vertices.astype(np.float32), box.faces))
-    assert closed.closed_manifold and closed.checked_by == "manifold3d"
+    assert closed.closed_manifold and closed.checked_by == "half-edges"
 
 
 def test_a_flat_point_set_has_no_hull_collider():

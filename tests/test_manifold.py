@@ -60,10 +60,71 @@ def test_report_agrees_with_manifold3d():
     closed = read_mesh(CAPSULE / "mesh.obj")
     opened = TriangleMesh(closed.vertices, closed.faces[24:])
     r = manifold_report(closed)
-    assert r.closed_manifold and _is_manifold(closed) and r.checked_by == "manifold3d"
+    assert r.closed_manifold and _is_manifold(closed) and r.checked_by == "half-edges"
     r = manifold_report(opened)
     assert not r.closed_manifold and not _is_manifold(opened) and r.boundary_edges > 0
     assert "boundary edges" in r.why_not()
+
+
+def _variant(base, kind: int, rng) -> TriangleMesh:
+    """``base`` (a trimesh) changed in one of nine ways that keep or break manifoldness."""
+    v, f = base.vertices.astype(np.float32), base.faces.astype(np.int64).copy()
+    if kind == 1:                                   # a few faces flipped
+        i = rng.choice(len(f), rng.integers(1, 4), replace=False)
+        f[i] = f[i][:, ::-1]
+    elif kind == 2:                                 # a hole or two
+        f = np.delete(f, rng.choice(len(f), rng.integers(1, 3), replace=False), 0)
+    elif kind == 3:                                 # one face twice
+        f = np.vstack([f, f[rng.integers(len(f))][None]])
+    elif kind == 4:                                 # needle faces (a corner repeated)
+        i = int(rng.integers(len(f)))
+        v = np.vstack([v, v[:1] + 3])
+        f = np.vstack([f, [[f[i, 0], f[i, 0], len(v) - 1]], [[len(v) - 1] * 3]])
+    elif kind == 5:                                 # a collapsed corner
+        i = rng.integers(len(f))
+        f[i, 1] = f[i, 0]
+    elif kind == 6:                                 # unwelded seam copies
+        dup = rng.choice(len(v), 5, replace=False)
+        remap = np.arange(len(v))
+        remap[dup] = np.arange(len(v), len(v) + 5)
+        v = np.vstack([v, v[dup]])
+        i = rng.choice(len(f), len(f) // 3, replace=False)
+        f[i] = remap[f[i]]
+    elif kind == 7:                                 # a second, inside-out copy
+        f = np.vstack([f, f[:, ::-1] + len(v)])
+        v = np.vstack([v, v + 5])
+    elif kind == 8:                                 # a copy sharing one vertex (pinched)
+        f = np.vstack([f, np.where(f == 0, 0, f + len(v))])
+        v = np.vstack([v, 2 * v[0] - v])
+    elif kind == 9:                                 # faces shuffled, corners rotated
+        f = np.roll(f[rng.permutation(len(f))], int(rng.integers(0, 3)), axis=1)
+    return TriangleMesh(v, f)
+
+
+def test_half_edge_verdict_is_manifold3d_verdict():
+    """The report's numpy verdict (two faces an edge, no directed edge twice) against
+    manifold3d's constructor on 200 meshes: spheres, boxes, capsules and cylinders with faces
+    flipped, removed, repeated or collapsed, needle faces, seam copies, inside-out and pinched
+    copies. manifold3d also accepts some meshes with edges of four faces, which the report
+    (like the earlier manifold3d-backed one, which asked manifold3d only with two faces an
+    edge) calls not closed: they are left out of the comparison."""
+    import trimesh
+
+    rng = np.random.default_rng(7)
+    bases = [trimesh.creation.icosphere(2), trimesh.creation.box(),
+             trimesh.creation.capsule(1.0, 0.5, count=[8, 8]), trimesh.creation.cylinder(1, 2, 10)]
+    verdicts = set()
+    for trial in range(200):
+        kind = trial % 10
+        mesh = _variant(bases[trial // 10 % len(bases)], kind, rng)
+        r = manifold_report(mesh)
+        if r.nonmanifold_edges:
+            assert not r.closed_manifold
+            continue
+        assert r.closed_manifold == _is_manifold(mesh), (trial, kind, r)
+        verdicts.add((kind, r.closed_manifold))
+    assert {(0, True), (1, False), (2, False), (4, True), (6, True), (7, True), (8, True),
+            (9, True)} <= verdicts
 
 
 def test_background_report_is_the_report_and_raises_what_it_raised():
