@@ -123,12 +123,15 @@ def local_frames(tri: np.ndarray) -> LocalFrames:
     shape = np.zeros((f, 2, 2))
 
     if np.any(regular):
-        len1 = np.sqrt(squared[regular, 0])
-        t[regular] = e1[regular] / len1[:, None]
-        n[regular] = cross[regular] / area2[regular, None]
-        shape[regular, 0, 0] = len1
-        shape[regular, 0, 1] = _dot(e2[regular], t[regular])
-        shape[regular, 1, 1] = area2[regular] / len1
+        # every triangle regular (the usual mesh): a slice, so no masked copies (the same
+        # values; 100k faces 27 -> 19 ms)
+        r: slice | np.ndarray = slice(None) if regular.all() else regular
+        len1 = np.sqrt(squared[r, 0])
+        t[r] = e1[r] / len1[:, None]
+        n[r] = cross[r] / area2[r, None]
+        shape[r, 0, 0] = len1
+        shape[r, 0, 1] = _dot(e2[r], t[r])
+        shape[r, 1, 1] = area2[r] / len1
     if np.any(line):
         which = np.argmax(squared[line], axis=-1)  # argmax returns the first maximum
         d = np.stack([e1[line], e2[line], e3[line]], axis=1)[np.arange(which.size), which]

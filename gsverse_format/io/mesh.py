@@ -41,8 +41,13 @@ _MTLLIB = re.compile(rb"^[ \t]*mtllib\b.*$", re.MULTILINE)
 
 
 def strip_material_libraries(data: bytes) -> bytes:
-    """OBJ bytes without their ``mtllib`` statements (materials are never read)."""
-    data = data.replace(b"\\\r\n", b"").replace(b"\\\n", b"")
+    """OBJ bytes without their ``mtllib`` statements (materials are never read), continuation
+    lines joined. Each step runs only where its bytes occur (the regular expression took 15 ms
+    over a 3.7 MB file without ``mtllib``)."""
+    if b"\\" in data:
+        data = data.replace(b"\\\r\n", b"").replace(b"\\\n", b"")
+    if b"mtllib" not in data:
+        return data
     return _MTLLIB.sub(b"", data)
 
 
