@@ -27,6 +27,7 @@ from .rig import AnchorRig
 
 __all__ = [
     "check_primitive",
+    "face_order",
     "prim_label",
     "splat_problem",
     "nested_extension_problem",
@@ -75,6 +76,23 @@ def _rows(array: np.ndarray, index) -> np.ndarray:
     if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and index.ndim == 1:
         return np.take(array, index, axis=0)
     return array[index]
+
+
+def face_order(face_index: np.ndarray) -> np.ndarray:
+    """The order that groups splats by face, faces ascending, splats of a face in their order
+    (spec §Ordering): ``np.argsort(face_index, kind="stable")``, the same indices, computed
+    for 65,536 or more non-negative integer keys below 2³² as a radix sort on two 16-bit digits
+    (numpy's stable sort is a radix sort for 16-bit keys and a timsort for wider ones: 4M
+    splats on 100k faces, 0.33 against 0.15 s)."""
+    f = np.asarray(face_index)
+    if f.ndim != 1 or f.size < 65_536 or f.dtype.kind not in "iu" or int(f.min()) < 0 \
+            or int(f.max()) >= 2**32:
+        return np.argsort(f, kind="stable")
+    if int(f.max()) < 65_536:
+        return np.argsort(f.astype(np.uint16), kind="stable")
+    f = f.astype(np.uint32, copy=False)
+    low = np.argsort((f & 0xFFFF).astype(np.uint16), kind="stable")
+    return low[np.argsort((f >> 16).astype(np.uint16)[low], kind="stable")]
 
 
 #: :meth:`SplatCloud.permute` reorders the SH coefficients in place in this many blocks of

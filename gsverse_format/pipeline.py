@@ -45,7 +45,7 @@ from .edit import EditCounts, SplatEdit, edit_splats, transform_mesh
 from .errors import FormatError, GsverseError, NonFiniteError, UsageError
 from .io.registry import (FORMATS, FRAMES, find_format, khr_loss, read_asset, rotate_asset,
                           write_asset)
-from .model import (Anchoring, KhrProperties, LocalAnchors, SplatAsset, SplatCloud,
+from .model import (Anchoring, KhrProperties, LocalAnchors, SplatAsset, SplatCloud, face_order,
                     SplatPrimitive, prim_label, splat_problem)
 from .progress import Progress
 from .transform import rotate_mesh, rotate_splats
@@ -563,7 +563,7 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         summary.max_distance = float(limit)
         keep = distance <= limit
     if not options.keep_order:
-        order = np.argsort(anchors.face_index, kind="stable")
+        order = face_order(anchors.face_index)
         keep_idx = order[keep[order]]
     else:
         keep_idx = np.flatnonzero(keep)

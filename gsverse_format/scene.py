@@ -57,6 +57,7 @@ from .model import (
     SplatCloud,
     SplatPrimitive,
     TriangleMesh,
+    face_order,
 )
 from .progress import Progress
 from .transform import rotate_mesh
@@ -326,7 +327,7 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
             mine &= b.distance <= limit
         idx = np.flatnonzero(mine)
         if not options.keep_order:
-            idx = idx[np.argsort(b.anchors.face_index[idx], kind="stable")]
+            idx = idx[face_order(b.anchors.face_index[idx])]
         anchored[idx] = True
         name = object_name(path)
         summary.objects.append({

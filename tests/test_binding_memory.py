@@ -182,3 +182,23 @@ def test_permute_of_an_empty_cloud_is_a_no_op():
     c = _cloud(0, 1)
     c.permute(np.zeros(0, np.int64))
     assert len(c) == 0 and c.sh.shape == (0, 16, 3)
+
+
+@pytest.mark.parametrize("n, top, dtype", [(10, 5, np.uint32), (70_000, 60_000, np.uint32),
+                                           (70_000, 65_536, np.uint32),
+                                           (200_003, 3_000_000, np.int64),
+                                           (100_000, 2**32 - 1, np.uint32),
+                                           (80_000, 2**33, np.int64)])
+def test_face_order_is_the_stable_argsort(n, top, dtype):
+    """The radix sort of face_order gives numpy's stable argsort, index for index: random
+    faces with many ties, below and above 2¹⁶ faces, past 2³² (argsort itself), and a
+    sorted input."""
+    from gsverse_format.model import face_order
+
+    rng = np.random.default_rng(n)
+    face = rng.integers(0, top, n, dtype=np.int64).astype(dtype)
+    face[: n // 3] = face[n // 2]                  # a long tie
+    for keys in (face, np.sort(face), face[::-1].copy()):
+        assert np.array_equal(face_order(keys), np.argsort(keys, kind="stable"))
+    assert np.array_equal(face_order(face.astype(np.int64) - 1),
+                          np.argsort(face.astype(np.int64) - 1, kind="stable"))

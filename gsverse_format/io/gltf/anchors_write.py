@@ -11,7 +11,7 @@ import numpy as np
 from ...anchors_derive import degenerate_splats
 from ...errors import UsageError
 from ...model import (Anchoring, GamesAnchors, LocalAnchors, SplatAsset, SplatCloud,
-                      SplatPrimitive, TriangleMesh)
+                      SplatPrimitive, TriangleMesh, face_order)
 from ...quaternion import unit_quaternions
 from ...vocabulary import ANCHOR_ENCODINGS as VOCAB_ENCODINGS
 from ...vocabulary import BYTE, FLOAT, SHORT, UNSIGNED_BYTE, UNSIGNED_INT, UNSIGNED_SHORT
@@ -124,7 +124,7 @@ def sorted_for_counts(prim: SplatPrimitive, i: int) -> tuple[SplatCloud, Anchori
     anchors, c = anchoring.anchors, prim.splats
     face = anchors.face_index.astype(np.int64)
     if face.size > 1 and bool(np.any(face[1:] < face[:-1])):
-        order = np.argsort(face, kind="stable")
+        order = face_order(face)
         c = c.subset(order)
         anchors = anchors.subset(order)
     problem = _compact_problem(Anchoring(anchoring.mesh, anchors))
