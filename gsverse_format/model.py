@@ -196,14 +196,18 @@ class SplatCloud:
         self.scales = np.take(self.scales, order, axis=0)
         self.opacities = np.take(self.opacities, order, axis=0)
         self.extra = {k: np.take(v, order, axis=0) for k, v in self.extra.items()}
-        # in place only into an array no one else sees: owned, writeable, and referenced by
-        # this cloud alone (another cloud or a view of it would hold a second reference;
-        # getrefcount's own argument is the other one counted here)
-        if (sys.getrefcount(self.sh) <= 2 and self.sh.flags.owndata
-                and self.sh.flags.writeable and self.sh.flags.c_contiguous):
+        if self.owns_sh():
             _permute_rows_in_place(self.sh, order)
         else:
             self.sh = np.take(self.sh, order, axis=0)
+
+    def owns_sh(self) -> bool:
+        """Whether the SH array may be changed in place: an array no one else sees, owned,
+        writeable, C-contiguous and referenced by this cloud alone (another cloud or a view
+        of it would hold a second reference; ``getrefcount``'s own argument is the other one
+        counted here)."""
+        return (sys.getrefcount(self.sh) <= 2 and self.sh.flags.owndata
+                and self.sh.flags.writeable and self.sh.flags.c_contiguous)
 
     def with_sh_degree(self, degree: int) -> "SplatCloud":
         """A copy truncated (or zero-padded) to SH ``degree``."""

@@ -343,13 +343,14 @@ def _require_writable_khr(labelled: list[tuple[str, KhrProperties]], input_path:
 
 def to_gltf(result: SourceResult) -> SourceResult:
     """``result`` rotated from its frame into the glTF frame: splats and mesh; the anchors are
-    relative to their triangles and stay as they are."""
+    relative to their triangles and stay as they are. ``result`` is given up: its SH may be
+    rotated in place (:func:`gsverse_format.transform.rotate_splats`)."""
     frame = FRAMES[result.frame]
     if frame.name == "gltf":
         return result
     mesh = rotate_mesh(result.mesh, frame.to_gltf) if result.mesh is not None else None
-    return replace(result, splats=rotate_splats(result.splats, frame.to_gltf), mesh=mesh,
-                   notes=result.notes + [frame.note], frame="gltf")
+    return replace(result, splats=rotate_splats(result.splats, frame.to_gltf, consume=True),
+                   mesh=mesh, notes=result.notes + [frame.note], frame="gltf")
 
 
 def _read_noting_usd_warnings(input_path: str, options: ConvertOptions,
@@ -391,7 +392,7 @@ def read_input(path: str | os.PathLike[str], *, frame_change: bool = True,
 
         asset = read_ply_asset(path, keep_nonfinite=True)
         if frame_change:
-            return rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+            return rotate_asset(asset, FRAMES[fmt.frame].to_gltf, consume=True)
         asset.frame = fmt.frame
         return asset
     if fmt.name != "usd":
@@ -400,7 +401,7 @@ def read_input(path: str | os.PathLike[str], *, frame_change: bool = True,
 
     asset = read_usd(path, isolate=True)
     if frame_change and fmt.frame != "gltf":
-        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf, consume=True)
     return asset
 
 

@@ -19,8 +19,14 @@ from .sh import rotate_sh, signed_permutation
 PLY_TO_GLTF = np.diag([-1.0, -1.0, 1.0])
 
 
-def rotate_splats(cloud: SplatCloud, rotation: np.ndarray) -> SplatCloud:
-    """Splats rotated by the proper rotation matrix ``rotation`` (3x3) about the origin."""
+def rotate_splats(cloud: SplatCloud, rotation: np.ndarray, *,
+                  consume: bool = False) -> SplatCloud:
+    """Splats rotated by the proper rotation matrix ``rotation`` (3x3) about the origin.
+
+    ``consume``: the caller gives ``cloud`` up; where nothing else refers to its SH array
+    (:meth:`~gsverse_format.model.SplatCloud.owns_sh`) the SH are rotated in that array
+    (:func:`gsverse_format.sh.rotate_sh`), which the result then holds and ``cloud`` may no
+    longer be used. The same values either way."""
     r = np.asarray(rotation, dtype=np.float64)
     if not np.allclose(r @ r.T, np.eye(3), atol=1e-12) or np.linalg.det(r) < 0:
         raise ValueError("rotation must be a proper rotation matrix")
@@ -30,7 +36,8 @@ def rotate_splats(cloud: SplatCloud, rotation: np.ndarray) -> SplatCloud:
     else:
         means = cloud.means.astype(np.float64) @ r.T
     q = quat.canonical_sign(quat.multiply(quat.from_matrix(r), quat.normalize(cloud.rotations)))
-    sh = rotate_sh(cloud.sh, r) if cloud.sh_degree > 0 else cloud.sh
+    own = consume and cloud.owns_sh()     # asked before cloud.sh is an argument (a reference)
+    sh = rotate_sh(cloud.sh, r, consume=own) if cloud.sh_degree > 0 else cloud.sh
     return SplatCloud(means, q, cloud.scales, cloud.opacities, sh, cloud.color_space,
                       dict(cloud.extra))
 

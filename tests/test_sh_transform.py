@@ -96,3 +96,26 @@ def test_rotate_splats_means_match_the_float64_product(rotation):
     want = (cloud.means.astype(np.float64) @ np.asarray(r, np.float64).T).astype(np.float32)
     assert np.array_equal(moved.means, want)
     assert np.allclose(moved.sh, _generic_rotate_sh(cloud.sh, r), rtol=2e-7, atol=1e-6)
+
+
+@pytest.mark.parametrize("rotation", [PLY_TO_GLTF, _QUARTER_Z, Z_UP_TO_GLTF, "random"])
+def test_consumed_cloud_rotates_in_its_own_sh_array(rotation):
+    """rotate_splats(consume=True): the same splats, bit for bit; the SH written into the
+    given cloud's array where only that cloud refers to it (signs and general rotations; a
+    reordering of coefficients makes a new array), never into an array someone else holds."""
+    r = random_rotation(4) if isinstance(rotation, str) else rotation
+    want = rotate_splats(random_splats(300, seed=4, sh_degree=3), r)
+    cloud = random_splats(300, seed=4, sh_degree=3)
+    address = cloud.sh.__array_interface__["data"][0]
+    moved = rotate_splats(cloud, r, consume=True)
+    for name in ("means", "rotations", "scales", "opacities", "sh"):
+        assert np.array_equal(getattr(moved, name), getattr(want, name)), name
+    reordered = signed_permutation(sh_rotation_matrix(r, 3)) is not None and \
+        not np.array_equal(signed_permutation(sh_rotation_matrix(r, 3))[0], np.arange(16))
+    assert (moved.sh.__array_interface__["data"][0] == address) is not reordered
+
+    shared = random_splats(300, seed=4, sh_degree=3)
+    held = shared.sh                                  # a second reference: not the cloud's alone
+    before = held.copy()
+    moved = rotate_splats(shared, r, consume=True)
+    assert np.array_equal(held, before) and np.array_equal(moved.sh, want.sh)

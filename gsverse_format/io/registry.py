@@ -135,10 +135,12 @@ def find_format(path: str | os.PathLike[str], kind: str = "read") -> FileFormat:
     return fmt
 
 
-def rotate_asset(asset: SplatAsset, rotation: np.ndarray) -> SplatAsset:
+def rotate_asset(asset: SplatAsset, rotation: np.ndarray, *,
+                 consume: bool = False) -> SplatAsset:
     """``asset`` rotated by the proper rotation ``rotation``: splats and anchor meshes (an
     anchor mesh shared by several primitives stays shared); anchors are relative to their
-    triangles and do not change."""
+    triangles and do not change. ``consume``: the caller gives ``asset`` up (its SH may be
+    rotated in place, see :func:`gsverse_format.transform.rotate_splats`)."""
     meshes: dict[int, TriangleMesh] = {}
 
     def mesh(m: TriangleMesh) -> TriangleMesh:
@@ -146,7 +148,7 @@ def rotate_asset(asset: SplatAsset, rotation: np.ndarray) -> SplatAsset:
             meshes[id(m)] = rotate_mesh(m, rotation)
         return meshes[id(m)]
 
-    return SplatAsset([SplatPrimitive(rotate_splats(p.splats, rotation),
+    return SplatAsset([SplatPrimitive(rotate_splats(p.splats, rotation, consume=consume),
                                       Anchoring(mesh(p.anchoring.mesh), p.anchoring.anchors)
                                       if p.anchoring is not None else None, p.name, p.khr)
                        for p in asset.primitives], asset.generator)
@@ -160,7 +162,7 @@ def read_asset(path: str | os.PathLike[str], *, frame_change: bool = True) -> Sp
     assert fmt.read is not None
     asset = fmt.read(path)
     if frame_change and fmt.frame != "gltf":
-        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf)
+        asset = rotate_asset(asset, FRAMES[fmt.frame].to_gltf, consume=True)  # read here
     elif fmt.frame != "gltf":
         asset.frame = fmt.frame   # kept in the file's frame: a glTF or USD output records it
     return asset
