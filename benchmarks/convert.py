@@ -309,7 +309,8 @@ def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = 2) -> list[
 
 def first_run(folder: Path, mesh, n: int, log) -> dict:
     """An anchored conversion of ``n`` splats in a fresh numba cache (``NUMBA_CACHE_DIR``):
-    with nothing compiled (the kernels compile during the run), right after
+    with nothing compiled (whatever numba kernels the run needs compile during it; an
+    anchored conversion needs none, binding's search being the C extension), right after
     ``python -m gsverse_format.precompile`` (the README's set-up), and warm (median of two
     later runs)."""
     d = folder / "first-run"
@@ -489,7 +490,8 @@ def first_run_markdown(first: dict) -> list[str]:
     if "error" in first:
         return L + ["The measurement failed:", "", "```", first["error"], "```", ""]
     L.append(_table(["run", "wall s", "/ warm"], [
-        ["nothing compiled (the kernels compile during the run)", _f(first["uncompiled_s"]),
+        ["an empty numba cache, no precompile (an anchored conversion runs no numba kernel)",
+         _f(first["uncompiled_s"]),
          f"{first['uncompiled_over_warm']:.2f}×"],
         ["`python -m gsverse_format.precompile` (the README's set-up)", _f(first["precompile_s"]),
          "–"],
