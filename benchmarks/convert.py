@@ -87,7 +87,8 @@ def stage(name, fn):
 rows.append(dict(stage="start-up and imports", seconds=time.perf_counter() - t0,
                  traced_peak_mb=0.0, traced_kept_mb=0.0, **rss()))
 asset = stage("read the PLY (file frame)", lambda: read_ply_asset(sys.argv[1]))
-asset = stage("frame change into glTF", lambda: rotate_asset(asset, FRAMES["3dgs"].to_gltf))
+asset = stage("frame change into glTF",   # as read_asset does: the SH rotated in their own array
+              lambda: rotate_asset(asset, FRAMES["3dgs"].to_gltf, consume=True))
 stage("write the GLB", lambda: write_asset(asset, sys.argv[2], frame_change=False))
 print(json.dumps(rows))
 """
