@@ -167,8 +167,9 @@ def configure_numba() -> None:
         from numba.core.codegen import get_host_cpu_features
 
         host = get_host_cpu_features()
-        if host and without_512_bit_vectors(host) != host:
-            setattr(config, "CPU_FEATURES", without_512_bit_vectors(host))
+        narrowed = without_512_bit_vectors(host)
+        if host and narrowed != host:
+            setattr(config, "CPU_FEATURES", narrowed)
 
 
 def without_512_bit_vectors(features: str) -> str:

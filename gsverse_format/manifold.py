@@ -173,8 +173,8 @@ class BackgroundReport:
     """:func:`manifold_report` of a mesh, computed on a thread started at once.
 
     numpy's sorts and array work release the interpreter, so on two or more cores the report
-    overlaps what the caller does next (the convert pipeline writes its output meanwhile). :meth:`result` waits
-    for the report and returns it, or raises what computing it raised.
+    overlaps what the caller does next (the convert pipeline writes its output meanwhile).
+    :meth:`result` waits for the report and returns it, or raises what computing it raised.
 
     A thread of the low-level :mod:`_thread` module, not a :class:`threading.Thread`: a process
     that ends early (an error, a stop signal) does not wait for it, and it leaves no weak
