@@ -94,6 +94,31 @@ def test_an_output_that_is_an_input_of_the_batch_is_refused(tree):
         plan(specs, str(tree / "out"), overwrite=True)
 
 
+def _stopped(pid: int) -> bool:
+    """Stop process ``pid`` (SIGSTOP) and wait until the kernel reports it stopped; False
+    when it is gone."""
+    try:
+        os.kill(pid, signal.SIGSTOP)
+        for _ in range(10_000):
+            with open(f"/proc/{pid}/stat") as stat:
+                state = stat.read().rpartition(")")[2].split()[0]
+            if state in ("T", "t"):
+                return True
+            if state in ("Z", "X"):
+                return False
+            time.sleep(0.001)
+    except (ProcessLookupError, FileNotFoundError):
+        return False
+    raise AssertionError(f"worker {pid} did not stop")
+
+
+def _resume(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGCONT)
+    except ProcessLookupError:
+        pass
+
+
 def test_a_killed_worker_fails_only_its_own_asset(tmp_path):
     from test_batch import start_batch
 
@@ -103,12 +128,19 @@ def test_a_killed_worker_fails_only_its_own_asset(tmp_path):
     try:
         # Kill the worker that is writing an output (its process id is in the temporary
         # file's name): it leaves a half-written temporary behind, which must not stay.
+        # The worker is stopped first, and killed only if its temporary still exists once
+        # it is stopped (else it finished that output: it goes on, and the next is tried),
+        # so the kill always lands while an output is half written.
         while time.monotonic() < deadline and proc.poll() is None and killed is None:
             for name in os.listdir(out) if out.is_dir() else []:
                 m = re.search(r"-(\d+)-[0-9a-f]{8}$", name)
                 if is_temporary(name) and m:
-                    killed = int(m.group(1))
-                    os.kill(killed, signal.SIGKILL)
+                    pid = int(m.group(1))
+                    if _stopped(pid) and (out / name).exists():
+                        killed = pid
+                        os.kill(pid, signal.SIGKILL)
+                    else:
+                        _resume(pid)
                     break
             time.sleep(0.005)
         stdout, stderr = proc.communicate(timeout=300)
