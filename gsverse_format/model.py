@@ -96,10 +96,12 @@ def face_order(face_index: np.ndarray) -> np.ndarray:
 
 
 #: :meth:`SplatCloud.permute` reorders the SH coefficients in place in this many blocks of
-#: columns, so that its temporary is a third of the SH array instead of a full copy; measured
-#: (1M splats, SH degree 3, 192 MB): 0.22 s against 0.08 s for a copy, 2 or 4 blocks 0.16 s
-#: or 0.27 s (a block is one random gather over all rows).
-PERMUTE_BLOCKS = 3
+#: columns, so that its temporary is half the SH array instead of a full copy. Measured (SH
+#: degree 3, fresh processes): 1M splats (192 MB) 0.096 s with 2 blocks against 0.13 s with
+#: 3 and 0.06-0.18 s with 1; 4M (768 MB) 0.37-0.39 s against 0.54-1.05 s with 3 and
+#: 1.0-1.7 s for ``np.take`` into a new array (a block is one random gather over all rows).
+#: The half-size temporary stays under the conversion's peak, which is reading the PLY.
+PERMUTE_BLOCKS = 2
 
 
 def _permute_rows_in_place(array: np.ndarray, order: np.ndarray) -> None:

@@ -128,7 +128,7 @@ def test_subset_by_index_array_mask_and_list_is_fancy_indexing():
         assert getattr(sa, name).tobytes() == getattr(a, name)[idx].tobytes()
 
 
-@pytest.mark.parametrize("blocks", [3, 4, 5])   # 48 SH columns: 3 or 4 blocks, or whole rows
+@pytest.mark.parametrize("blocks", [2, 3, 4, 5])   # 48 SH columns: 2-4 blocks, or whole rows
 def test_permute_in_place_equals_subset_and_bounds_its_temporaries(monkeypatch, blocks):
     n = 50_000
     c = _cloud(n, 4)

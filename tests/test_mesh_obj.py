@@ -80,6 +80,23 @@ def test_outside_the_subset_goes_to_trimesh(data: bytes) -> None:
     assert read_obj_triangles(data) is None
 
 
+@pytest.mark.parametrize("token", [b"1e-3", b"+.5", b"-2.", b"inf", b"-Infinity", b"NaN",
+                                   b"1e400", b"1_0", b"nan(1)", b"0x10", b"1d5", b"1,5"])
+def test_coordinates_read_as_the_token_conversion_reads_them(token: bytes) -> None:
+    """numpy's text parser reads the coordinates where it can; a token it refuses, or
+    ``nan(...)`` that it reads and Python's ``float`` refuses, is left to the conversion of
+    the split tokens, so the result is that conversion's (None where it refuses one)."""
+    data = b"v 0 0 0\nv 1 " + token + b" 0\nv 0 1 0\nf 1 2 3\n"
+    ours = read_obj_triangles(data)
+    try:
+        value = float(token)
+    except ValueError:
+        assert ours is None
+        return
+    assert ours is not None
+    np.testing.assert_array_equal(ours[0], [[0, 0, 0], [1, value, 0], [0, 1, 0]])
+
+
 def test_blanks_and_trailing_comments() -> None:
     """Indented statements, tabs and comments after a record are read as OBJ's grammar says
     (trimesh drops such face lines or fails on them; this reader does not)."""
