@@ -203,29 +203,43 @@ def write_inputs(folder: Path, mesh, n: int, seed: int = 3) -> tuple[Path, Path]
     return splats, mesh_path
 
 
-def _median_run(cmd: list[str], repeat: int, output: Path) -> dict:
-    runs = []
+def _median_runs(commands: dict[str, tuple[list[str], Path]], repeat: int) -> dict[str, dict]:
+    """Each command ``repeat`` times, the commands interleaved (round by round, so that a
+    slower spell of the machine falls on all of them), with medians per command."""
+    runs: dict[str, list[dict]] = {key: [] for key in commands}
+    errors: dict[str, dict] = {}
     for _ in range(repeat):
-        if output.exists():
-            output.unlink()
-        runs.append(run_process(cmd, env=_env()))
-        if runs[-1]["rc"] != 0:
-            return {"error": runs[-1]["output"][-2000:], "command": " ".join(cmd)}
-    return {"wall_s": float(np.median([r["wall_s"] for r in runs])),
-            "best_s": float(min(r["wall_s"] for r in runs)),
-            "peak_rss_mb": float(max(r["peak_rss_mb"] for r in runs)),
-            "output_mb": output.stat().st_size / 2**20}
+        for key, (cmd, output) in commands.items():
+            if key in errors:
+                continue
+            if output.exists():
+                output.unlink()
+            r = run_process(cmd, env=_env())
+            if r["rc"] != 0:
+                errors[key] = {"error": r["output"][-2000:], "command": " ".join(cmd)}
+                continue
+            runs[key].append(r)
+    res: dict[str, dict] = {}
+    for key, (_, output) in commands.items():
+        if key in errors:
+            res[key] = errors[key]
+            continue
+        walls = [r["wall_s"] for r in runs[key]]
+        res[key] = {"wall_s": float(np.median(walls)), "best_s": float(min(walls)),
+                    "peak_rss_mb": float(max(r["peak_rss_mb"] for r in runs[key])),
+                    "output_mb": output.stat().st_size / 2**20}
+    return res
 
 
 def head_to_head(folder: Path, splats: Path, mesh_path: Path, repeat: int, log) -> dict:
-    """The three conversions of the same PLY, side by side."""
+    """The three conversions of the same PLY, side by side (interleaved rounds)."""
     res: dict = {}
+    commands: dict[str, tuple[list[str], Path]] = {}
     problem = splat_transform_problem()
     if problem is None:
         out = folder / "splat-transform.glb"
-        log("convert: splat-transform PLY -> GLB")
-        res["splat_transform"] = _median_run(
-            ["node", str(SPLAT_TRANSFORM), "-q", "-w", str(splats), str(out)], repeat, out)
+        commands["splat_transform"] = (
+            ["node", str(SPLAT_TRANSFORM), "-q", "-w", str(splats), str(out)], out)
         version = subprocess.run(["node", str(SPLAT_TRANSFORM), "--version"],
                                  capture_output=True, text=True)
         found = re.search(r"\d+\.\d+\.\d+", version.stdout + version.stderr)
@@ -233,12 +247,12 @@ def head_to_head(folder: Path, splats: Path, mesh_path: Path, repeat: int, log) 
     else:
         res["splat_transform"] = {"skipped": problem}
     plain, anchored = folder / "plain.glb", folder / "anchored.glb"
-    log("convert: gsverse-convert --plain")
-    res["plain"] = _median_run(_python("gsverse_format.cli.convert", str(splats), str(plain),
-                                       "--plain", "-q", "-w"), repeat, plain)
-    log("convert: gsverse-convert --mesh")
-    res["anchored"] = _median_run(_python("gsverse_format.cli.convert", str(splats), str(anchored),
-                                          "--mesh", str(mesh_path), "-q", "-w"), repeat, anchored)
+    commands["plain"] = (_python("gsverse_format.cli.convert", str(splats), str(plain),
+                                 "--plain", "-q", "-w"), plain)
+    commands["anchored"] = (_python("gsverse_format.cli.convert", str(splats), str(anchored),
+                                    "--mesh", str(mesh_path), "-q", "-w"), anchored)
+    log(f"convert: {', '.join(commands)} side by side, {repeat} round(s)")
+    res.update(_median_runs(commands, repeat))
     return res
 
 
@@ -263,7 +277,7 @@ def _read_through(path: Path) -> None:
             pass
 
 
-def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = 2) -> list[dict]:
+def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = 3) -> list[dict]:
     """Plain and anchored conversion (mesh as PLY and as OBJ) and validation at each size:
     ``rounds`` interleaved rounds of the four commands, medians."""
     rows = []
@@ -389,7 +403,7 @@ def run(quick: bool = False, log=print, workdir: str | None = None,
         res["anchored_stages"] = memory_stages(splats, folder, mesh_path)
         splats.unlink()
         res["scaling"] = scaling(folder, mesh, list(sizes or (QUICK_SIZES if quick else DEFAULT_SIZES)),
-                                 log, rounds=1 if quick else 2)
+                                 log, rounds=1 if quick else 3)
         # not with --quick: compiling every kernel twice takes more than a minute
         res["first_run"] = {"skipped": "not run with --quick"} if quick else \
             first_run(folder, mesh, 100_000, log)
@@ -513,7 +527,8 @@ def markdown(conv: dict) -> list[str]:
     input_mb = conv["input_mb"]
     L.append(f"A 3DGS PLY of {conv['n_splats']:,} splats (SH degree 3 with normals, "
              f"{input_mb:.1f} MiB) and a {conv['n_faces']:,}-face mesh PLY; each command a fresh "
-             f"process, median of {conv['repeat']} run(s); peak RSS of the process.")
+             f"process, the commands interleaved, median of {conv['repeat']} round(s); peak RSS of "
+             "the process.")
     L.append("")
     rows = []
     st = conv["splat_transform"]
