@@ -24,6 +24,17 @@ Peak RSS is measured by a small launcher process that starts the command and rea
 as its starting high-water mark (a child forked from this benchmark process directly would
 inherit this process's).
 
+Memory made resident before each timed run: the conversions allocate hundreds of MiB, and on a
+virtual machine whose guest reports free memory back to the host (Linux free page reporting,
+``page_reporting``), a page freed a few seconds earlier must be backed by the host again when it
+is next touched. On the development machine touching 768 MB that an earlier process had freed
+took 0.05 s right after the free and 0.65-1.1 s four seconds later, and a 1M-splat ``--plain``
+conversion 1.35-2.28 s against 1.06-1.16 s. So before each timed command a helper process
+touches as much memory as the command is expected to use (:func:`warm_memory`: its peak of the
+previous round, or three times the input file at first) and exits, and the command starts on
+memory that is resident; every command of a table gets the same treatment, splat-transform
+included. The helper runs outside the timed interval.
+
 ``python -m benchmarks.convert [--quick] [--sizes 100k 1M 4M] [--repeat N]`` prints the tables.
 """
 from __future__ import annotations
@@ -127,10 +138,30 @@ print(json.dumps(rows))
 """
 
 
-def run_process(args: list[str], cwd: str | None = None, env: dict | None = None) -> dict:
+def warm_memory(nbytes: int) -> None:
+    """Touch ``nbytes`` of fresh memory in a helper process that then exits, so that the next
+    process starts on memory the machine holds resident (see the module docstring); at most
+    half of what the system has available (``MemAvailable``), nothing off Linux."""
+    try:
+        with open("/proc/meminfo") as info:
+            available = next(int(line.split()[1]) * 1024 for line in info
+                             if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError):
+        return
+    nbytes = min(int(nbytes), available // 2)
+    if nbytes > 0:
+        subprocess.run([sys.executable, "-c", "import sys, numpy as np; "
+                        "np.ones(int(sys.argv[1]) // 8)", str(nbytes)], check=True)
+
+
+def run_process(args: list[str], cwd: str | None = None, env: dict | None = None,
+                warm: int = 0) -> dict:
     """Run a command as a fresh process; wall seconds, exit status, peak RSS (MiB) and its
     output. The peak comes from a launcher (see the module docstring); the wall time includes
-    the launcher's start, a few tens of milliseconds, the same for every command."""
+    the launcher's start, a few tens of milliseconds, the same for every command. ``warm``:
+    bytes made resident first (:func:`warm_memory`, untimed)."""
+    if warm:
+        warm_memory(warm)
     with tempfile.TemporaryDirectory() as d:
         peak_file = os.path.join(d, "peak")
         with tempfile.TemporaryFile() as out:
@@ -203,7 +234,15 @@ def write_inputs(folder: Path, mesh, n: int, seed: int = 3) -> tuple[Path, Path]
     return splats, mesh_path
 
 
-def _median_runs(commands: dict[str, tuple[list[str], Path]], repeat: int) -> dict[str, dict]:
+def _warm_bytes(previous: list[dict], first: int) -> int:
+    """Memory to make resident before a command's next run: its peak RSS so far, else
+    ``first``."""
+    peaks = [r["peak_rss_mb"] for r in previous if r["peak_rss_mb"] == r["peak_rss_mb"]]
+    return int(max(peaks) * 2**20) if peaks else first
+
+
+def _median_runs(commands: dict[str, tuple[list[str], Path]], repeat: int,
+                 warm: int) -> dict[str, dict]:
     """Each command ``repeat`` times, the commands interleaved (round by round, so that a
     slower spell of the machine falls on all of them), with medians per command."""
     runs: dict[str, list[dict]] = {key: [] for key in commands}
@@ -214,7 +253,7 @@ def _median_runs(commands: dict[str, tuple[list[str], Path]], repeat: int) -> di
                 continue
             if output.exists():
                 output.unlink()
-            r = run_process(cmd, env=_env())
+            r = run_process(cmd, env=_env(), warm=_warm_bytes(runs[key], warm))
             if r["rc"] != 0:
                 errors[key] = {"error": r["output"][-2000:], "command": " ".join(cmd)}
                 continue
@@ -252,7 +291,7 @@ def head_to_head(folder: Path, splats: Path, mesh_path: Path, repeat: int, log) 
     commands["anchored"] = (_python("gsverse_format.cli.convert", str(splats), str(anchored),
                                     "--mesh", str(mesh_path), "-q", "-w"), anchored)
     log(f"convert: {', '.join(commands)} side by side, {repeat} round(s)")
-    res.update(_median_runs(commands, repeat))
+    res.update(_median_runs(commands, repeat, 3 * splats.stat().st_size))
     return res
 
 
@@ -302,11 +341,14 @@ def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = 3) -> list[
             "validate": _python("gsverse_format.validators.cli", str(anchored)),
         }
         times: dict[str, list[float]] = {key: [] for key in runs}
+        done: dict[str, list[dict]] = {key: [] for key in runs}
         for _ in range(rounds):
             for key, cmd in runs.items():
                 if f"{key}_error" in row:
                     continue
-                r = run_process(cmd, env=_env())
+                r = run_process(cmd, env=_env(),
+                                warm=_warm_bytes(done[key], 3 * splats.stat().st_size))
+                done[key].append(r)
                 if r["rc"] != 0:
                     row[f"{key}_error"] = r["output"][-500:]
                     continue
@@ -339,7 +381,7 @@ def first_run(folder: Path, mesh, n: int, log) -> dict:
     res: dict = {"n_splats": n, "n_faces": mesh.face_count}
 
     def timed(key: str, command: list[str]) -> bool:
-        r = run_process(command, env=env)
+        r = run_process(command, env=env, warm=3 * splats.stat().st_size)
         if r["rc"] != 0:
             res["error"] = f"{key}: " + r["output"].strip()[-500:]
             return False
@@ -452,7 +494,8 @@ def scaling_markdown(scale: list[dict], n_faces: int) -> list[str]:
     L = [f"Scaling (the same {n_faces:,}-face mesh, as PLY and as OBJ; each command a fresh "
          f"process, the four commands interleaved, median of {rounds} round(s); µs per splat = "
          "wall time / splats, start-up included; peak = the largest peak RSS of the rounds, "
-         "over the input file's size):", ""]
+         "over the input file's size; memory made resident before each run, untimed, see "
+         "`benchmarks/convert.py`):", ""]
     rows = []
     for r in scale:
         row = [f"{r['n_splats']:,}", _f(r["input_mb"])]
@@ -528,7 +571,9 @@ def markdown(conv: dict) -> list[str]:
     L.append(f"A 3DGS PLY of {conv['n_splats']:,} splats (SH degree 3 with normals, "
              f"{input_mb:.1f} MiB) and a {conv['n_faces']:,}-face mesh PLY; each command a fresh "
              f"process, the commands interleaved, median of {conv['repeat']} round(s); peak RSS of "
-             "the process.")
+             "the process; memory made resident before each run, untimed (a virtual machine's "
+             "free page reporting otherwise adds up to a second to a run, see "
+             "`benchmarks/convert.py`).")
     L.append("")
     rows = []
     st = conv["splat_transform"]
