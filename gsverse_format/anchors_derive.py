@@ -15,6 +15,7 @@ others (:func:`degenerate_splats`).
 """
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,8 @@ def degenerate_splats(mesh: TriangleMesh, face: np.ndarray,
 
 def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
                  rotations: np.ndarray, *, frames: LocalFrames | None = None,
-                 dtype: DTypeLike = np.float64, chunk: int = DERIVE_CHUNK) -> DerivedAnchors:
+                 dtype: DTypeLike = np.float64, chunk: int = DERIVE_CHUNK,
+                 threads: int = 1) -> DerivedAnchors:
     """``local`` anchors of splats with rest ``means`` (N, 3) and ``rotations`` (N, 4, xyzw,
     normalized here) on faces ``face`` (N,) of the rest ``mesh``, in binary64.
 
@@ -62,7 +64,10 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
     The splats are derived ``chunk`` at a time (the float64 temporaries stay bounded, about
     0.5 KiB a splat) and each binary64 result is stored as ``dtype``: float64 by default, or
     float32 for anchors about to be stored (rounded once, exactly as converting the float64
-    result would). Neither changes a value: every step is row by row.
+    result would). Neither changes a value: every step is row by row. With ``threads`` > 1
+    the chunks are derived on that many threads (numpy releases the GIL in its loops; each
+    chunk writes its own rows, so the values are the same); the temporaries then grow with
+    the threads.
     """
     if chunk < 1:
         raise ValueError("chunk must be positive")
@@ -77,7 +82,8 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
     # once per face, not per splat: conj(q_r) of the frame's rotation
     q_conj = quat.conjugate(quat.from_matrix(frames.rotation))
     out = DerivedAnchors(np.empty((n, 2), dtype), np.empty(n, dtype), np.empty((n, 4), dtype))
-    for lo in range(0, n, chunk):
+
+    def derive(lo: int) -> None:
         hi = min(lo + chunk, n)
         fc = f[lo:hi]
         rot = np.take(frames.rotation, fc, axis=0)                     # columns t, b, n
@@ -92,4 +98,19 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
         out.normal_offset[lo:hi] = local[:, 2]
         out.local_rotation[lo:hi] = quat.canonical_sign(quat.multiply(
             np.take(q_conj, fc, axis=0), quat.normalize(rotations[lo:hi])))
+
+    starts = range(0, n, chunk)
+    workers = min(threads, len(starts))
+    if workers > 1:
+        # numpy releases the GIL in its loops over a chunk; each chunk writes its own rows.
+        # On an error or an interrupt the chunks not started are cancelled, not waited for.
+        pool = ThreadPoolExecutor(max_workers=workers)
+        try:
+            for _ in pool.map(derive, starts):
+                pass
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+    else:
+        for lo in starts:
+            derive(lo)
     return out

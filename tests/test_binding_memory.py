@@ -42,19 +42,21 @@ def bound():
     return mesh, cloud, bind_local(cloud, mesh).anchors
 
 
-@pytest.mark.parametrize("chunk", [1, 7, 4096, DERIVE_CHUNK])
-def test_chunked_derivation_is_the_whole_array_rule_bit_for_bit(bound, chunk):
+@pytest.mark.parametrize("chunk, threads", [(1, 1), (7, 1), (7, 3), (400, 2), (4096, 1),
+                                           (DERIVE_CHUNK, 1), (DERIVE_CHUNK, 2)])
+def test_chunked_derivation_is_the_whole_array_rule_bit_for_bit(bound, chunk, threads):
     mesh, cloud, anchors = bound
     bary, offset, rotation = _whole_array_rule(mesh, anchors.face_index, cloud.means,
                                                cloud.rotations)
-    d = derive_local(mesh, anchors.face_index, cloud.means, cloud.rotations, chunk=chunk)
+    d = derive_local(mesh, anchors.face_index, cloud.means, cloud.rotations, chunk=chunk,
+                     threads=threads)
     assert d.barycentrics.dtype == np.float64
     assert d.barycentrics.tobytes() == bary.tobytes()
     assert d.normal_offset.tobytes() == offset.tobytes()
     assert d.local_rotation.tobytes() == rotation.tobytes()
     # float32 output: each binary64 result rounded once, as the binder stores it
     d32 = derive_local(mesh, anchors.face_index, cloud.means, cloud.rotations, chunk=chunk,
-                       dtype=np.float32)
+                       dtype=np.float32, threads=threads)
     assert d32.barycentrics.tobytes() == bary.astype(np.float32).tobytes()
     assert d32.normal_offset.tobytes() == offset.astype(np.float32).tobytes()
     assert d32.local_rotation.tobytes() == rotation.astype(np.float32).tobytes()

@@ -62,7 +62,8 @@ def native_available() -> bool:
 
 
 def search_threads() -> int:
-    """Threads the C search uses: ``GSVERSE_SEARCH_THREADS`` when set, else the usable CPUs."""
+    """Threads the C search uses (and binding's anchor derivation after it):
+    ``GSVERSE_SEARCH_THREADS`` when set, else the usable CPUs."""
     value = os.environ.get(THREADS_VARIABLE, "").strip()
     if value:
         try:
