@@ -237,7 +237,7 @@ def write_inputs(folder: Path, mesh, n: int, seed: int = 3) -> tuple[Path, Path]
 def _warm_bytes(previous: list[dict], first: int) -> int:
     """Memory to make resident before a command's next run: its peak RSS so far, else
     ``first``."""
-    peaks = [r["peak_rss_mb"] for r in previous if r["peak_rss_mb"] == r["peak_rss_mb"]]
+    peaks = [r["peak_rss_mb"] for r in previous if np.isfinite(r["peak_rss_mb"])]
     return int(max(peaks) * 2**20) if peaks else first
 
 

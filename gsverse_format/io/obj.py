@@ -77,7 +77,7 @@ def _numbers(text: bytes, dtype: type) -> tuple[np.ndarray, np.ndarray] | None:
         # index range check turns the file down all the same; ``nan(...)``, the one float
         # token, is left to the conversion (the check above).
         try:
-            fast = np.fromstring(text, dtype=np.int64, sep=" ")
+            fast = np.fromstring(text, dtype=dtype, sep=" ")
         except ValueError:
             fast = None
         if fast is not None and fast.size == int(counts.sum()):
