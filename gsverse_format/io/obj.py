@@ -76,6 +76,7 @@ def _numbers(text: bytes, dtype: type) -> tuple[np.ndarray, np.ndarray] | None:
         # it accepts what the conversion refuses: an integer beyond int64 saturates, and the
         # index range check turns the file down all the same; ``nan(...)``, the one float
         # token, is left to the conversion (the check above).
+        fast: np.ndarray | None
         try:
             fast = np.fromstring(text, dtype=dtype, sep=" ")
         except ValueError:
