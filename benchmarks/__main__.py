@@ -76,7 +76,7 @@ def _meta(argv: list[str], quick: bool) -> dict:
 def _external(module: str, args: list[str], log) -> dict:
     """Run ``python -m benchmarks.<module> args`` (another benchmark script) and keep its
     Markdown output, wall time and peak memory."""
-    from .convert import run_process
+    from .processes import run_process
 
     if not (HERE / f"{module}.py").is_file():
         return {"missing": f"benchmarks/{module}.py"}

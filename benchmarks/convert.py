@@ -19,21 +19,9 @@ after each stage), and a scaling table (``--sizes``, default 100k, 1M, 4M splats
 mesh): plain and anchored conversion and ``gsverse-validate`` of the anchored output, with the
 time per splat.
 
-Peak RSS is measured by a small launcher process that starts the command and reads
-``getrusage(RUSAGE_CHILDREN)`` after it exits: the child inherits only the launcher's few MiB
-as its starting high-water mark (a child forked from this benchmark process directly would
-inherit this process's).
-
-Memory made resident before each timed run: the conversions allocate hundreds of MiB, and on a
-virtual machine whose guest reports free memory back to the host (Linux free page reporting,
-``page_reporting``), a page freed a few seconds earlier must be backed by the host again when it
-is next touched. On the development machine touching 768 MB that an earlier process had freed
-took 0.05 s right after the free and 0.65-1.1 s four seconds later, and a 1M-splat ``--plain``
-conversion 1.35-2.28 s against 1.06-1.16 s. So before each timed command a helper process
-touches as much memory as the command is expected to use (:func:`warm_memory`: its peak of the
-previous round, or three times the input file at first) and exits, and the command starts on
-memory that is resident; every command of a table gets the same treatment, splat-transform
-included. The helper runs outside the timed interval.
+Each command runs as a fresh process through :func:`benchmarks.processes.run_process`: its peak
+RSS from a small launcher, and the memory it will use made resident first (untimed, the same
+for every command, splat-transform included; :mod:`benchmarks.processes` says why).
 
 ``python -m benchmarks.convert [--quick] [--sizes 100k 1M 4M] [--repeat N]`` prints the tables.
 """
@@ -41,7 +29,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -51,6 +38,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from .processes import run_process
 
 HERE = Path(__file__).resolve().parent
 #: The splat-transform command line tool, after ``npm ci`` in ``tests/splat_transform`` (the
@@ -64,14 +53,6 @@ DEFAULT_SIZES = ("100k", "1M", "4M")
 QUICK_SIZES = ("10k", "20k")
 #: Splats generated at a time (bounds the generator's float64 temporaries).
 _CHUNK = 250_000
-
-_LAUNCHER = """
-import os, resource, subprocess, sys
-with open(sys.argv[1], "w") as out:
-    rc = subprocess.call(sys.argv[2:])
-    out.write(str(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss))
-sys.exit(rc)
-"""
 
 _STAGES = """
 import json, os, sys, time, tracemalloc
@@ -136,46 +117,6 @@ asset = SplatAsset([SplatPrimitive(splats, Anchoring(mesh, anchors), "splats")])
 stage("write the GLB", lambda: write_asset(asset, sys.argv[2], frame_change=False))
 print(json.dumps(rows))
 """
-
-
-def warm_memory(nbytes: int) -> None:
-    """Touch ``nbytes`` of fresh memory in a helper process that then exits, so that the next
-    process starts on memory the machine holds resident (see the module docstring); at most
-    half of what the system has available (``MemAvailable``), nothing off Linux."""
-    try:
-        with open("/proc/meminfo") as info:
-            available = next(int(line.split()[1]) * 1024 for line in info
-                             if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError):
-        return
-    nbytes = min(int(nbytes), available // 2)
-    if nbytes > 0:
-        subprocess.run([sys.executable, "-c", "import sys, numpy as np; "
-                        "np.ones(int(sys.argv[1]) // 8)", str(nbytes)], check=True)
-
-
-def run_process(args: list[str], cwd: str | None = None, env: dict | None = None,
-                warm: int = 0) -> dict:
-    """Run a command as a fresh process; wall seconds, exit status, peak RSS (MiB) and its
-    output. The peak comes from a launcher (see the module docstring); the wall time includes
-    the launcher's start, a few tens of milliseconds, the same for every command. ``warm``:
-    bytes made resident first (:func:`warm_memory`, untimed)."""
-    if warm:
-        warm_memory(warm)
-    with tempfile.TemporaryDirectory() as d:
-        peak_file = os.path.join(d, "peak")
-        with tempfile.TemporaryFile() as out:
-            t0 = time.perf_counter()
-            p = subprocess.run([sys.executable, "-c", _LAUNCHER, peak_file, *args], stdout=out,
-                               stderr=subprocess.STDOUT, cwd=cwd, env=env)
-            wall = time.perf_counter() - t0
-            out.seek(0)
-            text = out.read().decode("utf-8", "replace")
-        try:
-            peak = int(Path(peak_file).read_text()) / 1024.0
-        except (OSError, ValueError):
-            peak = float("nan")
-    return {"wall_s": wall, "rc": p.returncode, "peak_rss_mb": peak, "output": text}
 
 
 def _env() -> dict:
@@ -495,7 +436,7 @@ def scaling_markdown(scale: list[dict], n_faces: int) -> list[str]:
          f"process, the four commands interleaved, median of {rounds} round(s); µs per splat = "
          "wall time / splats, start-up included; peak = the largest peak RSS of the rounds, "
          "over the input file's size; memory made resident before each run, untimed, see "
-         "`benchmarks/convert.py`):", ""]
+         "`benchmarks/processes.py`):", ""]
     rows = []
     for r in scale:
         row = [f"{r['n_splats']:,}", _f(r["input_mb"])]
@@ -573,7 +514,7 @@ def markdown(conv: dict) -> list[str]:
              f"process, the commands interleaved, median of {conv['repeat']} round(s); peak RSS of "
              "the process; memory made resident before each run, untimed (a virtual machine's "
              "free page reporting otherwise adds up to a second to a run, see "
-             "`benchmarks/convert.py`).")
+             "`benchmarks/processes.py`).")
     L.append("")
     rows = []
     st = conv["splat_transform"]

@@ -46,7 +46,7 @@ from typing import Callable
 
 import numpy as np
 
-from benchmarks.convert import run_process
+from benchmarks.processes import run_process
 from gsverse_format import limits
 
 TRIANGLE = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()

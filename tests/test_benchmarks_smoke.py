@@ -55,7 +55,7 @@ def test_benchmarks_use_a_regular_install(tmp_path):
         shutil.copytree(ROOT / folder, site / "gsverse_format" / folder, ignore=skip)
     env = dict(os.environ, PYTHONPATH=str(site))
     code = ("import benchmarks, gsverse_format, gsverse_format.converters; "
-            "from benchmarks.convert import _env, _python, run_process; "
+            "from benchmarks.convert import _env, _python; from benchmarks.processes import run_process; "
             "print(gsverse_format.__file__); "
             "r = run_process(_python('gsverse_format.cli.info', '--version'), env=_env()); "
             "print(r['rc'], r['output'].strip().splitlines()[-1])")
