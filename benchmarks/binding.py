@@ -245,7 +245,9 @@ def main(argv: list[str] | None = None) -> int:
 
     from gsverse_format.nearest import compiled as nearest_compiled
     from gsverse_format.nearest import nearest_triangles
-    from gsverse_format.nearest.native import search_threads
+    from gsverse_format.nearest.native import _module as native_module
+    from gsverse_format.nearest.native import nearest_triangles_native
+    from gsverse_format.threads import native_threads
     nearest_compiled.warm_up()
     first_call = time.perf_counter() - t0
     threads = numba.get_num_threads()
@@ -269,6 +271,10 @@ def main(argv: list[str] | None = None) -> int:
         "build": lambda: state.__setitem__("tree", nearest_compiled.build_tree(v, f, idx)),
         "query": lambda: nearest_compiled.query_tree(state["tree"], p),
     }
+    native_level = native_module().level()
+    if native_level > 0:
+        timed["generic"] = lambda: state.__setitem__("generic", nearest_triangles_native(
+            p, v, f, _level=0))
     o3d = None
     try:
         import open3d as o3d
@@ -305,9 +311,17 @@ def main(argv: list[str] | None = None) -> int:
                  for k in ("face", "distance", "closest", "barycentric"))
     med, best = _fmt_rate(t["native"], n)
     rows.append(["ours, C `nearest_triangles(method=\"native\")` (checks + BVH build + queries; "
-                 "what `bind_local` runs)", med, best, search_threads(),
+                 "what `bind_local` runs)", med, best, native_threads(),
                  "identical to numba's" if same_c else "DIFFERS from numba's", "0", "100%",
                  _load(t["native"])])
+    if native_level > 0:
+        same_g = all(np.array_equal(getattr(state["generic"], k), getattr(ref, k))
+                     for k in ("face", "distance", "closest", "barycentric"))
+        med, best = _fmt_rate(t["generic"], n)
+        rows.append([f"ours, the same C search with its generic x86-64 query loop (this CPU "
+                     f"runs the {('AVX2', 'AVX-512F')[native_level - 1]} one above)", med, best,
+                     native_threads(), "identical to numba's" if same_g else
+                     "DIFFERS from numba's", "0", "100%", _load(t["generic"])])
     med, best = _fmt_rate(t["bind"], n)
     rows.append(["ours, `bind_local` (the binding of `gsverse-convert --mesh`: search + anchors)",
                  med, best, threads, "same faces", "–", "–", _load(t["bind"])])

@@ -20,7 +20,7 @@ from .errors import BindingError
 from .frames import local_frames
 from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
 from .nearest import nearest_triangles
-from .nearest.native import search_threads
+from .threads import native_threads
 
 __all__ = ["BindResult", "bind_local"]
 
@@ -63,7 +63,7 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     # steps 2-3 of spec §Writing anchors: the rule readers of compact assets use too; float32
     # as stored, derived a chunk at a time (the float64 temporaries stay bounded)
     derived = derive_local(mesh, face, splats.means, splats.rotations, frames=frames,
-                           dtype=np.float32, threads=search_threads())
+                           dtype=np.float32, threads=native_threads())
     anchors = LocalAnchors(face.astype(np.uint32), derived.barycentrics, derived.normal_offset,
                            derived.local_rotation, splats.scales, law)
     return BindResult(anchors, distance, int(np.count_nonzero(~frames.regular)))

@@ -15,7 +15,6 @@ Covariance of splat i is ``R_i diag(scales_i)² R_iᵀ``.
 from __future__ import annotations
 
 import json
-import math
 import sys
 from dataclasses import dataclass, field
 from typing import Any, Literal, Union
@@ -24,6 +23,7 @@ import numpy as np
 
 from .errors import FormatError, UsageError
 from .rig import AnchorRig
+from .rows import permute_rows_in_place, take_rows
 
 __all__ = [
     "check_primitive",
@@ -69,15 +69,6 @@ def sh_degree_for_count(count: int) -> int:
     raise ValueError(f"{count} SH coefficients per channel is not (d+1)^2 for d in 0..3")
 
 
-def _rows(array: np.ndarray, index) -> np.ndarray:
-    """``array[index]`` along the first axis: ``np.take`` for an integer index array (the same
-    values, without fancy indexing's per-element overhead: 2-3 times faster on (N, K, 3) SH),
-    fancy indexing for anything else (boolean masks, slices)."""
-    if isinstance(index, np.ndarray) and index.dtype.kind in "iu" and index.ndim == 1:
-        return np.take(array, index, axis=0)
-    return array[index]
-
-
 def face_order(face_index: np.ndarray) -> np.ndarray:
     """The order that groups splats by face, faces ascending, splats of a face in their order
     (spec §Ordering): ``np.argsort(face_index, kind="stable")``, the same indices, computed
@@ -93,26 +84,6 @@ def face_order(face_index: np.ndarray) -> np.ndarray:
     f = f.astype(np.uint32, copy=False)
     low = np.argsort((f & 0xFFFF).astype(np.uint16), kind="stable")
     return low[np.argsort((f >> 16).astype(np.uint16)[low], kind="stable")]
-
-
-#: :meth:`SplatCloud.permute` reorders the SH coefficients in place in this many blocks of
-#: columns, so that its temporary is half the SH array instead of a full copy. Measured (SH
-#: degree 3, fresh processes): 1M splats (192 MB) 0.096 s with 2 blocks against 0.13 s with
-#: 3 and 0.06-0.18 s with 1; 4M (768 MB) 0.37-0.39 s against 0.54-1.05 s with 3 and
-#: 1.0-1.7 s for ``np.take`` into a new array (a block is one random gather over all rows).
-#: The half-size temporary stays under the conversion's peak, which is reading the PLY.
-PERMUTE_BLOCKS = 2
-
-
-def _permute_rows_in_place(array: np.ndarray, order: np.ndarray) -> None:
-    """``array[:] = array[order]`` (C-contiguous ``array``), :data:`PERMUTE_BLOCKS` blocks of
-    columns at a time when its row divides into that many (each block gathered as one opaque
-    item of its bytes), else whole rows."""
-    flat = array.reshape(array.shape[0], -1)
-    blocks = math.gcd(flat.shape[1], PERMUTE_BLOCKS)
-    items = flat.view(np.dtype((np.void, flat.itemsize * flat.shape[1] // blocks)))
-    for b in range(blocks):
-        items[:, b] = items[order, b]
 
 
 def _as(array, dtype, shape_tail: tuple, name: str, n: int | None = None) -> np.ndarray:
@@ -172,10 +143,10 @@ class SplatCloud:
 
     def subset(self, index) -> "SplatCloud":
         """Splats selected by an index array or boolean mask (copies)."""
-        return SplatCloud(_rows(self.means, index), _rows(self.rotations, index),
-                          _rows(self.scales, index), _rows(self.opacities, index),
-                          _rows(self.sh, index), self.color_space,
-                          {k: _rows(v, index) for k, v in self.extra.items()})
+        return SplatCloud(take_rows(self.means, index), take_rows(self.rotations, index),
+                          take_rows(self.scales, index), take_rows(self.opacities, index),
+                          take_rows(self.sh, index), self.color_space,
+                          {k: take_rows(v, index) for k, v in self.extra.items()})
 
     def permute(self, order: np.ndarray) -> None:
         """Reorder the splats in place: row ``i`` becomes row ``order[i]`` (``order`` a
@@ -193,15 +164,15 @@ class SplatCloud:
             raise ValueError(f"order must be a permutation of the {n} splats")
         if n == 0:
             return
-        self.means = np.take(self.means, order, axis=0)
-        self.rotations = np.take(self.rotations, order, axis=0)
-        self.scales = np.take(self.scales, order, axis=0)
-        self.opacities = np.take(self.opacities, order, axis=0)
-        self.extra = {k: np.take(v, order, axis=0) for k, v in self.extra.items()}
+        self.means = take_rows(self.means, order)
+        self.rotations = take_rows(self.rotations, order)
+        self.scales = take_rows(self.scales, order)
+        self.opacities = take_rows(self.opacities, order)
+        self.extra = {k: take_rows(v, order) for k, v in self.extra.items()}
         if self.owns_sh():
-            _permute_rows_in_place(self.sh, order)
+            permute_rows_in_place(self.sh, order)
         else:
-            self.sh = np.take(self.sh, order, axis=0)
+            self.sh = take_rows(self.sh, order)
 
     def owns_sh(self) -> bool:
         """Whether the SH array may be changed in place: an array no one else sees, owned,
@@ -310,9 +281,11 @@ class LocalAnchors:
         return int(self.face_index.shape[0])
 
     def subset(self, index) -> "LocalAnchors":
-        return LocalAnchors(_rows(self.face_index, index), _rows(self.barycentrics, index),
-                            _rows(self.normal_offset, index), _rows(self.local_rotation, index),
-                            _rows(self.local_scale, index), self.deformation)
+        return LocalAnchors(take_rows(self.face_index, index),
+                            take_rows(self.barycentrics, index),
+                            take_rows(self.normal_offset, index),
+                            take_rows(self.local_rotation, index),
+                            take_rows(self.local_scale, index), self.deformation)
 
 
 @dataclass
@@ -339,8 +312,8 @@ class GamesAnchors:
         return int(self.face_index.shape[0])
 
     def subset(self, index) -> "GamesAnchors":
-        return GamesAnchors(_rows(self.face_index, index), _rows(self.barycentrics, index),
-                            _rows(self.rho, index))
+        return GamesAnchors(take_rows(self.face_index, index),
+                            take_rows(self.barycentrics, index), take_rows(self.rho, index))
 
 
 Anchors = Union[LocalAnchors, GamesAnchors]

@@ -9,7 +9,7 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from gsverse_format import model
+from gsverse_format import rows
 from gsverse_format import quaternion as quat
 from gsverse_format.anchors_derive import DERIVE_CHUNK, derive_local
 from gsverse_format.binding import bind_local
@@ -137,7 +137,7 @@ def test_permute_in_place_equals_subset_and_bounds_its_temporaries(monkeypatch, 
     order = np.argsort(np.random.default_rng(2).integers(0, 999, n), kind="stable")
     expected = c.subset(order)
     address, nbytes = c.sh.__array_interface__["data"][0], c.sh.nbytes
-    monkeypatch.setattr(model, "PERMUTE_BLOCKS", blocks)
+    monkeypatch.setattr(rows, "PERMUTE_BLOCKS", blocks)
     tracemalloc.start()
     try:
         c.permute(order)

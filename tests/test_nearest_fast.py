@@ -30,15 +30,31 @@ def same_bits(a, b, what):
     np.testing.assert_array_equal(a, b, err_msg=what)
 
 
+def native_levels() -> range:
+    """The instruction levels of the C query loop this CPU runs (0 generic .. 2 AVX-512F)."""
+    from gsverse_format.nearest import native as nn
+
+    mod = nn._module()
+    assert mod is not None, nn.native_unavailable_reason()
+    return range(mod.level() + 1)
+
+
 def both(points, vertices, faces, **kw):
-    """Run the reference and both compiled searches (numba, C) and require identical results;
-    returns the numba one."""
+    """Run the reference and both compiled searches (numba, C: as dispatched, and its query
+    loop at every instruction level this CPU runs) and require identical results; returns the
+    numba one."""
+    from gsverse_format.nearest.native import nearest_triangles_native
+
     ref = nearest_triangles(points, vertices, faces, method="numpy", **kw)
     fast = nearest_triangles(points, vertices, faces, method="numba", **kw)
     native = nearest_triangles(points, vertices, faces, method="native", **kw)
     for name in FIELDS:
         same_bits(getattr(fast, name), getattr(ref, name), f"numba {name}")
         same_bits(getattr(native, name), getattr(ref, name), f"native {name}")
+    for level in native_levels():
+        again = nearest_triangles_native(points, vertices, faces, _level=level, **kw)
+        for name in FIELDS:
+            same_bits(getattr(again, name), getattr(ref, name), f"native level {level} {name}")
     assert fast.face.dtype == np.int64 and fast.distance.dtype == np.float64
     return fast
 
@@ -201,7 +217,7 @@ def test_nasty_mesh_equals_reference(seed):
         np.testing.assert_array_equal(getattr(again, name), getattr(res, name))
     for n in ("1", "7"):                                   # the C search: 1 and 7 threads
         with pytest.MonkeyPatch.context() as mp:
-            mp.setenv("GSVERSE_SEARCH_THREADS", n)
+            mp.setenv("GSVERSE_THREADS", n)
             again = nearest_triangles(p, v, f, method="native", chunk=37)
         for name in FIELDS:
             same_bits(getattr(again, name), getattr(res, name), f"{n} threads {name}")
@@ -345,17 +361,28 @@ def test_the_c_search_is_built_and_refused_when_absent(monkeypatch):
         nn.nearest_triangles_native(np.zeros((1, 3)), v, f)
 
 
-def test_search_threads(monkeypatch):
-    from gsverse_format.nearest import native as nn
+def test_native_query_refuses_a_level_this_cpu_lacks():
+    from gsverse_format.nearest.native import nearest_triangles_native
 
-    monkeypatch.delenv("GSVERSE_SEARCH_THREADS", raising=False)
-    assert nn.search_threads() >= 1
-    monkeypatch.setenv("GSVERSE_SEARCH_THREADS", " 3 ")
-    assert nn.search_threads() == 3
+    v, f = bumpy_icosphere(1, seed=2)
+    top = native_levels()[-1]
+    assert top >= 0
+    for bad in (-1, top + 1):
+        with pytest.raises(ValueError, match="instruction level"):
+            nearest_triangles_native(v[:5] + 0.01, v, f, _level=bad)
+
+
+def test_native_threads(monkeypatch):
+    from gsverse_format import threads as nn
+
+    monkeypatch.delenv("GSVERSE_THREADS", raising=False)
+    assert nn.native_threads() >= 1
+    monkeypatch.setenv("GSVERSE_THREADS", " 3 ")
+    assert nn.native_threads() == 3
     for bad in ("0", "-2", "many"):
-        monkeypatch.setenv("GSVERSE_SEARCH_THREADS", bad)
-        with pytest.raises(ValueError, match="GSVERSE_SEARCH_THREADS"):
-            nn.search_threads()
+        monkeypatch.setenv("GSVERSE_THREADS", bad)
+        with pytest.raises(ValueError, match="GSVERSE_THREADS"):
+            nn.native_threads()
 
 
 def test_the_c_extension_refuses_calls_that_would_leave_its_arrays():
@@ -375,11 +402,16 @@ def test_the_c_extension_refuses_calls_that_would_leave_its_arrays():
     p = np.zeros((2, 3))
     out = (np.empty(2, np.int64), np.empty(2), np.empty((2, 3)), np.empty((2, 3)))
     with pytest.raises(ValueError, match="order"):
-        _native.query(tree, p, np.array([0, 2], np.int64), 0, 2, 1e-11, 1, *out)
+        _native.query(tree, p, np.array([0, 2], np.int64), 0, 2, 1e-11, 1, *out, 0)
     with pytest.raises(ValueError, match="range"):
-        _native.query(tree, p, np.array([0, 1], np.int64), 0, 3, 1e-11, 1, *out)
+        _native.query(tree, p, np.array([0, 1], np.int64), 0, 3, 1e-11, 1, *out, 0)
     with pytest.raises(ValueError, match="size"):
         _native.query(tree, p, np.array([0, 1], np.int64), 0, 2, 1e-11, 1,
-                      out[0], out[1], out[2], np.empty((1, 3)))
-    _native.query(tree, p, np.array([1, 0], np.int64), 0, 2, 1e-11, 1, *out)
-    assert list(out[0]) == [0, 0] and np.allclose(out[1], 1 / np.sqrt(3))
+                      out[0], out[1], out[2], np.empty((1, 3)), 0)
+    with pytest.raises(ValueError, match="level"):
+        _native.query(tree, p, np.array([0, 1], np.int64), 0, 2, 1e-11, 1, *out,
+                      _native.level() + 1)
+    for level in native_levels():
+        out[0][:] = -1
+        _native.query(tree, p, np.array([1, 0], np.int64), 0, 2, 1e-11, 1, *out, level)
+        assert list(out[0]) == [0, 0] and np.allclose(out[1], 1 / np.sqrt(3))

@@ -17,12 +17,11 @@ than a whole plain 100k-splat conversion). Binding therefore uses it whenever it
 compiler the extension is absent, :func:`native_unavailable_reason` says so, and the search
 runs on numba.
 
-Threads: :func:`search_threads`, the CPUs this process may run on (``os.sched_getaffinity``),
-or ``GSVERSE_SEARCH_THREADS`` when set to a positive integer.
+Threads: :func:`gsverse_format.threads.native_threads` (the usable CPUs, or
+``GSVERSE_THREADS``).
 """
 from __future__ import annotations
 
-import os
 from functools import lru_cache
 from types import ModuleType
 from typing import Callable
@@ -30,13 +29,10 @@ from typing import Callable
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..threads import native_threads
 from .reference import DEGENERATE_RATIO, MARGIN, NearestResult, prepare_query
 
-__all__ = ["THREADS_VARIABLE", "native_unavailable_reason", "native_available",
-           "search_threads", "nearest_triangles_native"]
-
-#: Environment variable overriding the number of search threads (a positive integer).
-THREADS_VARIABLE = "GSVERSE_SEARCH_THREADS"
+__all__ = ["native_unavailable_reason", "native_available", "nearest_triangles_native"]
 
 
 @lru_cache(maxsize=None)
@@ -61,30 +57,17 @@ def native_available() -> bool:
     return _module() is not None
 
 
-def search_threads() -> int:
-    """Threads the C search uses (and binding's anchor derivation after it):
-    ``GSVERSE_SEARCH_THREADS`` when set, else the usable CPUs."""
-    value = os.environ.get(THREADS_VARIABLE, "").strip()
-    if value:
-        try:
-            n = int(value)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ValueError(f"{THREADS_VARIABLE} must be a positive integer, got {value!r}")
-        return n
-    try:
-        return max(len(os.sched_getaffinity(0)), 1)
-    except AttributeError:                       # not on Linux
-        return max(os.cpu_count() or 1, 1)
-
-
 def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
                              exclude: ArrayLike | None = None, chunk: int = 65536,
-                             progress: Callable[[int, int], None] | None = None
-                             ) -> NearestResult:
+                             progress: Callable[[int, int], None] | None = None,
+                             _level: int | None = None) -> NearestResult:
     """The C search: same arguments and result as
     :func:`~gsverse_format.nearest.reference.nearest_triangles_numpy`, bit for bit.
+
+    The query loop is compiled for several instruction sets (generic x86-64 or any CPU, AVX2,
+    AVX-512F; the same operations in the same order, so the same bits) and runs the widest
+    this CPU has (``_native.level()``); ``_level`` picks a narrower one (the tests compare
+    them).
 
     Raises :class:`ImportError` when the extension was not built (see
     :func:`native_unavailable_reason`)."""
@@ -98,7 +81,8 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
         if progress is not None:
             progress(0, 0)
         return res
-    threads = search_threads()
+    threads = native_threads()
+    level = mod.level() if _level is None else _level
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     tree = mod.build(V, F, np.ascontiguousarray(idx, dtype=np.int64), DEGENERATE_RATIO, threads)
@@ -108,7 +92,7 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
     for lo in range(0, n, chunk):
         hi = min(lo + chunk, n)
         mod.query(tree, Ps, order, lo, hi, MARGIN, threads,
-                  res.face, res.distance, res.closest, res.barycentric)
+                  res.face, res.distance, res.closest, res.barycentric, level)
         if progress is not None:
             progress(hi, n)
     return res
