@@ -66,7 +66,7 @@ from gsverse_format.errors import FormatError, UsageError
 from gsverse_format.meshops import bbox_diagonal, decimate, face_components, mesh_stats, repair
 from gsverse_format.model import SplatCloud, TriangleMesh
 from gsverse_format.native_output import native_output
-from gsverse_format.nearest import nearest_triangles
+from gsverse_format.nearest import nearest_faces
 from gsverse_format.quaternion import normalize, to_matrix
 
 __all__ = ["DEFAULT_FACES", "reconstruct_mesh", "build_anchor_mesh", "splat_normals",
@@ -335,7 +335,7 @@ def distance_check(splats: SplatCloud, mesh: TriangleMesh, *,
     n = len(splats)
     idx = np.arange(n) if n <= sample else np.linspace(0, n - 1, sample).astype(np.int64)
     diag = bbox_diagonal(mesh) or 1.0
-    d = nearest_triangles(splats.means[idx], mesh.vertices, mesh.faces.astype(np.int64)).distance
+    d = nearest_faces(splats.means[idx], mesh.vertices, mesh.faces.astype(np.int64))[1]
     p50, p95 = np.percentile(d, [50, 95]) if d.size else (0.0, 0.0)
     return {"distance_p50_rel": float(p50 / diag), "distance_p95_rel": float(p95 / diag),
             "distance_max_rel": float(d.max() / diag) if d.size else 0.0, "checked": int(idx.size)}

@@ -47,7 +47,7 @@ from gsverse_format.io.mesh import read_mesh
 from gsverse_format.io.ply import describe_ply, read_ply_elements, read_splat_ply
 from gsverse_format.meshops import bbox_diagonal, mesh_stats, weld
 from gsverse_format.model import TriangleMesh
-from gsverse_format.nearest import nearest_triangles
+from gsverse_format.nearest import nearest_faces
 from gsverse_format.transform import rotate_splats
 
 __all__ = ["T_EXPORT", "PLY_TO_GLB", "LEGACY_PLY_TO_GLB", "load", "detect", "frame_distances"]
@@ -84,7 +84,7 @@ def _subset(n: int, limit: int) -> np.ndarray:
 def frame_distances(means: np.ndarray, mesh: TriangleMesh, rotation: np.ndarray) -> np.ndarray:
     """Exact distances from ``rotation @ means`` to the nearest triangle of ``mesh``."""
     p = np.asarray(means, dtype=np.float64) @ np.asarray(rotation, dtype=np.float64).T
-    return nearest_triangles(p, mesh.vertices, mesh.faces.astype(np.int64)).distance
+    return nearest_faces(p, mesh.vertices, mesh.faces.astype(np.int64))[1]
 
 
 def _check_layout(path: str) -> None:
@@ -163,7 +163,7 @@ def load(input_path: str, mesh_path: str | None, options: SourceOptions) -> Sour
                      "frame (p_glb = T^T p_ply)")
 
     idx = _subset(len(splats), _CHECK)
-    d = nearest_triangles(splats.means[idx], mesh.vertices, mesh.faces.astype(np.int64)).distance
+    d = nearest_faces(splats.means[idx], mesh.vertices, mesh.faces.astype(np.int64))[1]
     p50, p95 = np.percentile(d, [50, 95])
     check = {"frame": frame, "distance_p50_rel": float(p50 / diag),
              "distance_p95_rel": float(p95 / diag), "distance_max_rel": float(d.max() / diag),

@@ -19,7 +19,7 @@ from .anchors_derive import derive_local
 from .errors import BindingError
 from .frames import local_frames
 from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
-from .nearest import nearest_triangles
+from .nearest import nearest_faces
 from .threads import native_threads
 
 __all__ = ["BindResult", "bind_local"]
@@ -56,10 +56,8 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
         return BindResult(LocalAnchors(np.zeros(0, np.uint32), np.zeros((0, 2)), empty,
                                        np.zeros((0, 4)), np.zeros((0, 3)), law), empty,
                           int(np.count_nonzero(~frames.regular)))
-    nearest = nearest_triangles(splats.means, mesh.vertices, mesh.faces, exclude=~frames.regular,
-                                progress=progress)
-    face, distance = nearest.face, nearest.distance
-    del nearest   # its closest points and barycentrics (48 bytes a splat) are not used here
+    face, distance = nearest_faces(splats.means, mesh.vertices, mesh.faces,
+                                   exclude=~frames.regular, progress=progress)
     # steps 2-3 of spec §Writing anchors: the rule readers of compact assets use too; float32
     # as stored, derived a chunk at a time (the float64 temporaries stay bounded)
     derived = derive_local(mesh, face, splats.means, splats.rotations, frames=frames,

@@ -15,7 +15,8 @@ pytest.importorskip("numba")
 from gsverse_format.nearest import compiled as nf                         # noqa: E402
 from gsverse_format.nearest import compiled_kernel as nk                  # noqa: E402
 from gsverse_format.nearest import reference as nt                        # noqa: E402
-from gsverse_format.nearest import closest_points_on_triangles, nearest_triangles  # noqa: E402
+from gsverse_format.nearest import (closest_points_on_triangles, nearest_faces,  # noqa: E402
+                                    nearest_triangles)
 
 from test_nearest import bumpy_icosphere, check_result, nasty_mesh, query_points  # noqa: E402
 
@@ -43,7 +44,7 @@ def both(points, vertices, faces, **kw):
     """Run the reference and both compiled searches (numba, C: as dispatched, and its query
     loop at every instruction level this CPU runs) and require identical results; returns the
     numba one."""
-    from gsverse_format.nearest.native import nearest_triangles_native
+    from gsverse_format.nearest.native import nearest_faces_native, nearest_triangles_native
 
     ref = nearest_triangles(points, vertices, faces, method="numpy", **kw)
     fast = nearest_triangles(points, vertices, faces, method="numba", **kw)
@@ -55,6 +56,13 @@ def both(points, vertices, faces, **kw):
         again = nearest_triangles_native(points, vertices, faces, _level=level, **kw)
         for name in FIELDS:
             same_bits(getattr(again, name), getattr(ref, name), f"native level {level} {name}")
+        face, distance = nearest_faces_native(points, vertices, faces, _level=level, **kw)
+        same_bits(face, ref.face, f"faces alone, level {level}")
+        same_bits(distance, ref.distance, f"distances alone, level {level}")
+    for method in ("numpy", "numba", "native", "auto"):
+        face, distance = nearest_faces(points, vertices, faces, method=method, **kw)
+        same_bits(face, ref.face, f"faces alone, {method}")
+        same_bits(distance, ref.distance, f"distances alone, {method}")
     assert fast.face.dtype == np.int64 and fast.distance.dtype == np.float64
     return fast
 
@@ -411,6 +419,13 @@ def test_the_c_extension_refuses_calls_that_would_leave_its_arrays():
     with pytest.raises(ValueError, match="level"):
         _native.query(tree, p, np.array([0, 1], np.int64), 0, 2, 1e-11, 1, *out,
                       _native.level() + 1)
+    with pytest.raises(TypeError):                 # the closest points: both or neither
+        _native.query(tree, p, np.array([0, 1], np.int64), 0, 2, 1e-11, 1, out[0], out[1],
+                      None, out[3], 0)
+    face, distance = np.full(2, -1, np.int64), np.empty(2)
+    _native.query(tree, p, np.array([1, 0], np.int64), 0, 2, 1e-11, 1, face, distance, None,
+                  None, 0)
+    assert list(face) == [0, 0] and np.allclose(distance, 1 / np.sqrt(3))
     for level in native_levels():
         out[0][:] = -1
         _native.query(tree, p, np.array([1, 0], np.int64), 0, 2, 1e-11, 1, *out, level)

@@ -1,6 +1,6 @@
 """Exact nearest-triangle search (point → closest triangle of a mesh), used by the binding.
 
-* :mod:`.dispatch`: :func:`nearest_triangles`, the entry point, choosing an implementation
+* :mod:`.dispatch`: :func:`nearest_triangles` and :func:`nearest_faces`, the entry points, choosing an implementation
   (:mod:`gsverse_format.backend`);
 * :mod:`.reference`: the vectorised numpy reference, whose docstring states the point–triangle
   kernel, the certified branch-and-bound search and the tie rule;
@@ -17,5 +17,5 @@ from __future__ import annotations
 
 # No __all__: the API reference (pdoc, scripts/api_docs.py) gives each module of a package a
 # page of its own only when the package has none.
-from .dispatch import nearest_triangles
+from .dispatch import nearest_faces, nearest_triangles
 from .reference import NearestResult, closest_points_on_triangles

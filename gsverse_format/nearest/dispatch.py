@@ -1,5 +1,6 @@
-"""Exact nearest-triangle queries (point → closest triangle of a mesh): the entry point,
-:func:`nearest_triangles` (re-exported by :mod:`gsverse_format.nearest`).
+"""Exact nearest-triangle queries (point → closest triangle of a mesh): the entry points,
+:func:`nearest_triangles` and :func:`nearest_faces` (its faces and distances alone), both
+re-exported by :mod:`gsverse_format.nearest`.
 
 :func:`nearest_triangles` returns, for every query point, a triangle whose float64 distance to
 the point is *exactly* the minimum over all selectable triangles — the value a brute-force scan
@@ -34,10 +35,12 @@ import numpy as np
 
 from ..atomic import interruptions_immediate
 from ..backend import NEAREST_NUMPY_BELOW, BackendUnavailableError, get_backend, resolve_backend
-from .native import native_available, native_unavailable_reason, nearest_triangles_native
+from .native import (native_available, native_unavailable_reason, nearest_faces_native,
+                     nearest_triangles_native)
 from .reference import NearestResult, closest_points_on_triangles, nearest_triangles_numpy
 
-__all__ = ["NearestResult", "nearest_triangles", "closest_points_on_triangles", "METHODS"]
+__all__ = ["NearestResult", "nearest_triangles", "nearest_faces", "closest_points_on_triangles",
+           "METHODS"]
 
 #: The names ``method`` accepts.
 METHODS: tuple[str, ...] = ("auto", "native", "numba", "numpy")
@@ -67,18 +70,11 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     ``"native"`` where the C search was not built, or ``"numba"`` without numba, raises
     :class:`~gsverse_format.backend.BackendUnavailableError` (an ``ImportError``).
     """
-    chosen = method.strip().lower() if isinstance(method, str) else method
-    if chosen not in METHODS:
-        raise ValueError(f"method must be 'auto', 'native', 'numba' or 'numpy', got {method!r}")
-    if chosen == "native" and not native_available():
-        raise BackendUnavailableError(native_unavailable_reason())
-    if chosen == "native" or (chosen == "auto" and get_backend() == "auto"
-                              and native_available()):
+    chosen = _choose(method, points, faces)
+    if chosen == "native":
         return nearest_triangles_native(points, vertices, faces, exclude=exclude, chunk=chunk,
                                         progress=progress)
-    size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
-    if resolve_backend(chosen, argument="method", size=size,
-                       numpy_below=NEAREST_NUMPY_BELOW) == "numba":
+    if chosen == "numba":
         with interruptions_immediate():   # compiled code: no Python handler may raise inside
             from .compiled import nearest_triangles_numba
 
@@ -86,3 +82,35 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
                                            chunk=chunk, progress=progress)
     return nearest_triangles_numpy(points, vertices, faces, exclude=exclude, chunk=chunk,
                                    progress=progress)
+
+
+def nearest_faces(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
+                  exclude: ArrayLike | None = None, chunk: int = 65536,
+                  progress: Callable[[int, int], None] | None = None,
+                  method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """``(face, distance)`` of :func:`nearest_triangles` (same arguments, same values) for
+    callers that need no closest points: the C search then neither computes nor stores them
+    and their barycentrics (48 bytes a point); the other implementations compute them and
+    drop them."""
+    if _choose(method, points, faces) == "native":
+        return nearest_faces_native(points, vertices, faces, exclude=exclude, chunk=chunk,
+                                    progress=progress)
+    res = nearest_triangles(points, vertices, faces, exclude=exclude, chunk=chunk,
+                            progress=progress, method=method)
+    return res.face, res.distance
+
+
+def _choose(method: str, points: ArrayLike, faces: ArrayLike) -> str:
+    """The implementation ``method`` names for this job: ``"native"``, ``"numba"`` or
+    ``"numpy"`` (see :func:`nearest_triangles`)."""
+    chosen = method.strip().lower() if isinstance(method, str) else method
+    if chosen not in METHODS:
+        raise ValueError(f"method must be 'auto', 'native', 'numba' or 'numpy', got {method!r}")
+    if chosen == "native" and not native_available():
+        raise BackendUnavailableError(native_unavailable_reason())
+    if chosen == "native" or (chosen == "auto" and get_backend() == "auto"
+                              and native_available()):
+        return "native"
+    size = int(np.shape(points)[0]) + int(np.shape(faces)[0])
+    return resolve_backend(chosen, argument="method", size=size,
+                           numpy_below=NEAREST_NUMPY_BELOW)

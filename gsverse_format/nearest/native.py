@@ -32,7 +32,8 @@ from numpy.typing import ArrayLike
 from ..threads import native_threads
 from .reference import DEGENERATE_RATIO, MARGIN, NearestResult, prepare_query
 
-__all__ = ["native_unavailable_reason", "native_available", "nearest_triangles_native"]
+__all__ = ["native_unavailable_reason", "native_available", "nearest_triangles_native",
+           "nearest_faces_native"]
 
 
 @lru_cache(maxsize=None)
@@ -71,18 +72,42 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
 
     Raises :class:`ImportError` when the extension was not built (see
     :func:`native_unavailable_reason`)."""
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
+    res = NearestResult.allocate(P.shape[0])
+    _search(P, V, F, idx, chunk, progress, _level, res.face, res.distance, res.closest,
+            res.barycentric)
+    return res
+
+
+def nearest_faces_native(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
+                         exclude: ArrayLike | None = None, chunk: int = 65536,
+                         progress: Callable[[int, int], None] | None = None,
+                         _level: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``face`` and ``distance`` of :func:`nearest_triangles_native`, the same values,
+    without its closest points and barycentrics: neither computed nor stored (48 bytes a
+    point)."""
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
+    face, distance = np.empty(P.shape[0], np.int64), np.empty(P.shape[0])
+    _search(P, V, F, idx, chunk, progress, _level, face, distance, None, None)
+    return face, distance
+
+
+def _search(P: np.ndarray, V: np.ndarray, F: np.ndarray, idx: np.ndarray, chunk: int,
+            progress: Callable[[int, int], None] | None, level: int | None,
+            face: np.ndarray, distance: np.ndarray, closest: np.ndarray | None,
+            barycentric: np.ndarray | None) -> None:
+    """The search of checked arguments (:func:`prepare_query`) into the given rows; the
+    closest points and barycentrics only when arrays for them are given."""
     mod = _module()
     if mod is None:
         raise ImportError(native_unavailable_reason())
-    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
     n = P.shape[0]
-    res = NearestResult.allocate(n)
     if n == 0:
         if progress is not None:
             progress(0, 0)
-        return res
+        return
     threads = native_threads()
-    level = mod.level() if _level is None else _level
+    level = mod.level() if level is None else level
     V = np.ascontiguousarray(V, dtype=np.float64)
     F = np.ascontiguousarray(F, dtype=np.int64)
     tree = mod.build(V, F, np.ascontiguousarray(idx, dtype=np.int64), DEGENERATE_RATIO, threads)
@@ -91,8 +116,7 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
     mod.sort_queries(np.ascontiguousarray(P, dtype=np.float64), order, Ps)
     for lo in range(0, n, chunk):
         hi = min(lo + chunk, n)
-        mod.query(tree, Ps, order, lo, hi, MARGIN, threads,
-                  res.face, res.distance, res.closest, res.barycentric, level)
+        mod.query(tree, Ps, order, lo, hi, MARGIN, threads, face, distance, closest,
+                  barycentric, level)
         if progress is not None:
             progress(hi, n)
-    return res

@@ -9,6 +9,7 @@
  *   sort_queries(P, order, Ps)          coarse Morton order of P into order, P[order] into Ps
  *   query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric,
  *         level)                        the queries, by the loop compiled for `level`
+ *                                       (closest and barycentric both None: not computed)
  *   level() -> the widest instruction level this CPU runs: 0 generic, 1 AVX2, 2 AVX-512F
  *             (x86-64 with GCC or clang; elsewhere always 0)
  *
@@ -259,7 +260,7 @@ typedef struct {
     const int64_t *order;
     int64_t lo, hi;
     int64_t *face;
-    double *distance, *closest, *bary;
+    double *distance, *closest, *bary;   /* closest and bary: NULL when not asked for */
 } query_ctx;
 
 static void query_run(const query_ctx *c, int64_t blk)
@@ -277,12 +278,14 @@ static void query_run(const query_ctx *c, int64_t blk)
         int64_t q = c->order[i];
         c->face[q] = t->face[k];
         c->distance[q] = sqrt(d2);
-        c->closest[3 * q] = r[0] + v * r[3] + w * r[6];
-        c->closest[3 * q + 1] = r[1] + v * r[4] + w * r[7];
-        c->closest[3 * q + 2] = r[2] + v * r[5] + w * r[8];
-        c->bary[3 * q] = gsv__max(1.0 - v - w, 0.0);
-        c->bary[3 * q + 1] = v;
-        c->bary[3 * q + 2] = w;
+        if (c->closest) {
+            c->closest[3 * q] = r[0] + v * r[3] + w * r[6];
+            c->closest[3 * q + 1] = r[1] + v * r[4] + w * r[7];
+            c->closest[3 * q + 2] = r[2] + v * r[5] + w * r[8];
+            c->bary[3 * q] = gsv__max(1.0 - v - w, 0.0);
+            c->bary[3 * q + 1] = v;
+            c->bary[3 * q + 2] = w;
+        }
     }
 }
 
@@ -329,7 +332,7 @@ static PyObject *query(PyObject *self, PyObject *args)
     Py_buffer b[6];
     Py_ssize_t lo, hi, n, i;
     double margin;
-    int threads, lvl, bad = 0;
+    int threads, lvl, nb, bad = 0;
     query_ctx c;
     void (*work)(void *, int64_t) = query_block;
     (void)self;
@@ -350,22 +353,32 @@ static PyObject *query(PyObject *self, PyObject *args)
     if (get(oo, &b[1], 0, 0, n, 1, "order") < 0) { release(b, 1); return NULL; }
     if (get(of, &b[2], 1, 0, n, 1, "face") < 0) { release(b, 2); return NULL; }
     if (get(od, &b[3], 1, 1, n, 1, "distance") < 0) { release(b, 3); return NULL; }
-    if (get(oc, &b[4], 1, 1, 3 * n, 1, "closest") < 0) { release(b, 4); return NULL; }
-    if (get(ob, &b[5], 1, 1, 3 * n, 1, "barycentric") < 0) { release(b, 5); return NULL; }
+    nb = 4;
+    if (oc != Py_None || ob != Py_None) {         /* the closest points: both or neither */
+        if (get(oc, &b[4], 1, 1, 3 * n, 1, "closest") < 0) { release(b, 4); return NULL; }
+        if (get(ob, &b[5], 1, 1, 3 * n, 1, "barycentric") < 0) { release(b, 5); return NULL; }
+        nb = 6;
+    }
     c.order = (const int64_t *)b[1].buf;
-    for (i = 0; i < n && !bad; i++) bad = c.order[i] < 0 || c.order[i] >= n;
-    if (bad || lo < 0 || hi > n || lo > hi) {
-        release(b, 6);
-        PyErr_SetString(PyExc_ValueError, bad ? "order out of range" : "bad query range");
+    if (lo < 0 || hi > n || lo > hi) {
+        release(b, nb);
+        PyErr_SetString(PyExc_ValueError, "bad query range");
+        return NULL;
+    }
+    for (i = lo; i < hi && !bad; i++) bad = c.order[i] < 0 || c.order[i] >= n;
+    if (bad) {
+        release(b, nb);
+        PyErr_SetString(PyExc_ValueError, "order out of range");
         return NULL;
     }
     c.margin = margin; c.P = (const double *)b[0].buf; c.lo = lo; c.hi = hi;
     c.face = (int64_t *)b[2].buf; c.distance = (double *)b[3].buf;
-    c.closest = (double *)b[4].buf; c.bary = (double *)b[5].buf;
+    c.closest = nb == 6 ? (double *)b[4].buf : NULL;
+    c.bary = nb == 6 ? (double *)b[5].buf : NULL;
     Py_BEGIN_ALLOW_THREADS
     run_pool(work, &c, (hi - lo + BLOCK - 1) / BLOCK, threads);
     Py_END_ALLOW_THREADS
-    release(b, 6);
+    release(b, nb);
     Py_RETURN_NONE;
 }
 
@@ -376,8 +389,9 @@ static PyMethodDef methods[] = {
      "sort_queries(P, order, Ps): coarse Morton order of the points, and the sorted points."},
     {"query", query, METH_VARARGS,
      "query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric, "
-     "level): nearest faces of Ps[lo:hi], written to rows order[lo:hi] of the outputs, by the "
-     "loop compiled for instruction level `level` (at most level())."},
+     "level): nearest faces of Ps[lo:hi], written to rows order[lo:hi] of the outputs "
+     "(closest and barycentric may both be None), by the loop compiled for instruction level "
+     "`level` (at most level())."},
     {"level", level, METH_NOARGS,
      "level(): the widest instruction level of the query loop this CPU runs (0 generic, 1 "
      "AVX2, 2 AVX-512F)."},
