@@ -53,7 +53,7 @@ def degenerate_splats(mesh: TriangleMesh, face: np.ndarray,
 def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
                  rotations: np.ndarray, *, frames: LocalFrames | None = None,
                  dtype: DTypeLike = np.float64, chunk: int = DERIVE_CHUNK,
-                 threads: int = 1) -> DerivedAnchors:
+                 threads: int = 1, order: np.ndarray | None = None) -> DerivedAnchors:
     """``local`` anchors of splats with rest ``means`` (N, 3) and ``rotations`` (N, 4, xyzw,
     normalized here) on faces ``face`` (N,) of the rest ``mesh``, in binary64.
 
@@ -68,6 +68,11 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
     the chunks are derived on that many threads (numpy releases the GIL in its loops; each
     chunk writes its own rows, so the values are the same); the temporaries then grow with
     the threads.
+
+    ``order`` (N splat indices, a permutation as a rule) derives them in that order: row ``i``
+    of the result is splat ``order[i]`` on face ``face[order[i]]``, the values of
+    ``derive_local(...)`` taken in that order, without reordering the inputs first (each chunk
+    gathers its rows).
     """
     if chunk < 1:
         raise ValueError("chunk must be positive")
@@ -83,11 +88,20 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
     q_conj = quat.conjugate(quat.from_matrix(frames.rotation))
     out = DerivedAnchors(np.empty((n, 2), dtype), np.empty(n, dtype), np.empty((n, 4), dtype))
 
+    if order is not None:
+        order = np.asarray(order)
+        if order.shape != (n,) or order.dtype.kind not in "iu":
+            raise ValueError(f"order must hold {n} integer splat indices")
+
     def derive(lo: int) -> None:
         hi = min(lo + chunk, n)
-        fc = f[lo:hi]
+        if order is None:
+            fc, mu, q = f[lo:hi], means[lo:hi], rotations[lo:hi]
+        else:
+            rows = order[lo:hi]
+            fc, mu, q = f[rows], np.take(means, rows, axis=0), np.take(rotations, rows, axis=0)
         rot = np.take(frames.rotation, fc, axis=0)                     # columns t, b, n
-        rel = np.asarray(means[lo:hi], dtype=np.float64) - np.take(frames.origin, fc, axis=0)
+        rel = np.asarray(mu, dtype=np.float64) - np.take(frames.origin, fc, axis=0)
         local = np.einsum("nji,nj->ni", rot, rel)                      # (x, y, z) = R_rᵀ (μ − v0)
         c = np.take(frames.shape, fc, axis=0)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -97,7 +111,7 @@ def derive_local(mesh: TriangleMesh, face: np.ndarray, means: np.ndarray,
         out.barycentrics[lo:hi, 1] = b2
         out.normal_offset[lo:hi] = local[:, 2]
         out.local_rotation[lo:hi] = quat.canonical_sign(quat.multiply(
-            np.take(q_conj, fc, axis=0), quat.normalize(rotations[lo:hi])))
+            np.take(q_conj, fc, axis=0), quat.normalize(q)))
 
     starts = range(0, n, chunk)
     workers = min(threads, len(starts))

@@ -18,8 +18,9 @@ import numpy as np
 from .anchors_derive import derive_local
 from .errors import BindingError
 from .frames import local_frames
-from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh
+from .model import DeformationLaw, LocalAnchors, SplatCloud, TriangleMesh, face_order
 from .nearest import nearest_faces
+from .rows import take_rows
 from .threads import native_threads
 
 __all__ = ["BindResult", "bind_local"]
@@ -27,20 +28,30 @@ __all__ = ["BindResult", "bind_local"]
 
 @dataclass
 class BindResult:
-    """Anchors plus what the binder measured: ``distance`` (N,) from each mean to its face."""
+    """Anchors plus what the binder measured: ``distance`` (N,) from each mean to its face,
+    in the splats' order. ``order`` is None, or, when the binder was asked for anchors in face
+    order, the order of the splats they follow (:func:`~gsverse_format.model.face_order` of
+    the faces): anchor ``i`` is that of splat ``order[i]``."""
 
     anchors: LocalAnchors
     distance: np.ndarray
     degenerate_faces: int
+    order: np.ndarray | None = None
 
 
 def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "affine",
-               progress: Callable[[int, int], None] | None = None) -> BindResult:
+               progress: Callable[[int, int], None] | None = None,
+               in_face_order: bool = False) -> BindResult:
     """Bind every splat of ``splats`` to its nearest non-degenerate face of ``mesh``.
 
     ``deformation`` is the law stored with the anchors, ``"affine"`` or ``"rigid"``
     (``ValueError`` otherwise); ``progress(done, total)`` follows the nearest-triangle search.
     Raises :class:`~gsverse_format.errors.BindingError` when the mesh has no usable triangle.
+
+    ``in_face_order`` returns the anchors grouped by face (spec §Ordering), with that order
+    in ``BindResult.order``: what a writer of compact anchors stores once the splats are
+    reordered the same way, without reordering a second copy of the anchors. The anchors'
+    values are the same, row by row.
     """
     if deformation not in ("affine", "rigid"):
         raise ValueError(f"deformation must be 'affine' or 'rigid', got {deformation!r}")
@@ -55,13 +66,19 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
         empty = np.zeros(0)
         return BindResult(LocalAnchors(np.zeros(0, np.uint32), np.zeros((0, 2)), empty,
                                        np.zeros((0, 4)), np.zeros((0, 3)), law), empty,
-                          int(np.count_nonzero(~frames.regular)))
+                          int(np.count_nonzero(~frames.regular)),
+                          np.zeros(0, np.intp) if in_face_order else None)
     face, distance = nearest_faces(splats.means, mesh.vertices, mesh.faces,
                                    exclude=~frames.regular, progress=progress)
     # steps 2-3 of spec §Writing anchors: the rule readers of compact assets use too; float32
     # as stored, derived a chunk at a time (the float64 temporaries stay bounded)
+    order = face_order(face) if in_face_order else None
     derived = derive_local(mesh, face, splats.means, splats.rotations, frames=frames,
-                           dtype=np.float32, threads=native_threads())
-    anchors = LocalAnchors(face.astype(np.uint32), derived.barycentrics, derived.normal_offset,
-                           derived.local_rotation, splats.scales, law)
-    return BindResult(anchors, distance, int(np.count_nonzero(~frames.regular)))
+                           dtype=np.float32, threads=native_threads(), order=order)
+    if order is None:
+        anchor_face, scales = face.astype(np.uint32), splats.scales
+    else:
+        anchor_face, scales = face[order].astype(np.uint32), take_rows(splats.scales, order)
+    anchors = LocalAnchors(anchor_face, derived.barycentrics, derived.normal_offset,
+                           derived.local_rotation, scales, law)
+    return BindResult(anchors, distance, int(np.count_nonzero(~frames.regular)), order)

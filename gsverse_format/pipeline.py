@@ -536,13 +536,15 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
             summary.notes.append("--watertight: the source's exact binding was replaced by "
                                  "nearest-triangle binding to the repaired mesh (local profile)")
             anchors = None
+    sorted_order = None       # when set: the anchors are already in this (face) order
     if anchors is None:
         progress.stage("binding to the nearest triangles")
         try:
-            bound = bind_local(splats, mesh, deformation=options.deformation, progress=progress.update)
+            bound = bind_local(splats, mesh, deformation=options.deformation,
+                               progress=progress.update, in_face_order=not options.keep_order)
         except GsverseError as exc:
             raise exc.with_path(options.mesh or summary.input)
-        anchors, distance = bound.anchors, bound.distance
+        anchors, distance, sorted_order = bound.anchors, bound.distance, bound.order
         summary.degenerate_faces = bound.degenerate_faces
     else:
         if isinstance(anchors, LocalAnchors) and anchors.deformation != options.deformation:
@@ -563,11 +565,20 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
         limit = options.max_distance if options.absolute_distance else options.max_distance * diagonal
         summary.max_distance = float(limit)
         keep = distance <= limit
-    if not options.keep_order:
+    # keep_idx: the splats kept, in their written order; anchor_idx: their anchors' rows
+    # (None: all of them, as they are)
+    anchor_idx: np.ndarray | None
+    if sorted_order is not None:                # the anchors are in face order already
+        if options.max_distance is None:
+            keep_idx, anchor_idx = sorted_order, None
+        else:
+            anchor_idx = np.flatnonzero(keep[sorted_order])
+            keep_idx = sorted_order[anchor_idx]
+    elif not options.keep_order:
         order = face_order(anchors.face_index)
-        keep_idx = order[keep[order]]
+        keep_idx = anchor_idx = order[keep[order]]
     else:
-        keep_idx = np.flatnonzero(keep)
+        keep_idx = anchor_idx = np.flatnonzero(keep)
     primitives = []
     if keep_idx.size:
         if keep_idx.size == len(splats):
@@ -575,11 +586,12 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
             # nothing reads them in the old order after this) or, kept in order, used as is
             if not options.keep_order:
                 splats.permute(keep_idx)
-            kept, kept_anchors = splats, anchors.subset(keep_idx)
+            kept = splats
         else:
-            kept, kept_anchors = splats.subset(keep_idx), anchors.subset(keep_idx)
+            kept = splats.subset(keep_idx)
+        kept_anchors = anchors if anchor_idx is None else anchors.subset(anchor_idx)
         primitives.append(SplatPrimitive(kept, Anchoring(mesh, kept_anchors),
                                          input_stem(summary), result.khr))
-    return with_static_rest(primitives, result, np.flatnonzero(~keep), options, summary,
-                            f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}",
+    return with_static_rest(primitives, splats, result.khr, np.flatnonzero(~keep), options,
+                            summary, f"the mesh{' ' + repr(options.mesh) if options.mesh else ''}",
                             "is the mesh")

@@ -341,8 +341,8 @@ def anchor_scene(result: Any, meshes: list[TriangleMesh], paths: list[str],
         else:
             summary.notes.append(f"no splat is anchored to {name} ({path}): its mesh is not "
                                  f"written")
-    return with_static_rest(primitives, result, np.flatnonzero(~anchored), options, summary,
-                            "every mesh", "are the meshes")
+    return with_static_rest(primitives, splats, result.khr, np.flatnonzero(~anchored), options,
+                            summary, "every mesh", "are the meshes")
 
 
 def input_stem(summary: ConvertSummary) -> str:
@@ -350,19 +350,20 @@ def input_stem(summary: ConvertSummary) -> str:
     return os.path.splitext(os.path.basename(summary.input.rstrip(os.sep)))[0] or "splats"
 
 
-def with_static_rest(primitives: list[SplatPrimitive], result: Any, far_idx: np.ndarray,
-                     options: ConvertOptions, summary: ConvertSummary, from_what: str,
-                     frame_question: str) -> SplatAsset:
-    """The asset of the anchored ``primitives`` and the splats that stay unanchored
-    (``far_idx``): one plain static primitive, or dropped with ``--drop-unanchored``; an asset
-    left with nothing is refused (``from_what``/``frame_question`` word the message)."""
-    splats = result.splats
+def with_static_rest(primitives: list[SplatPrimitive], splats: SplatCloud, khr: Any,
+                     far_idx: np.ndarray, options: ConvertOptions, summary: ConvertSummary,
+                     from_what: str, frame_question: str) -> SplatAsset:
+    """The asset of the anchored ``primitives`` and the splats of ``splats`` that stay
+    unanchored (``far_idx``; ``splats`` as the anchored ones were taken from, after
+    ``--sh-degree``): one plain static primitive with the KHR properties ``khr``, or dropped
+    with ``--drop-unanchored``; an asset left with nothing is refused
+    (``from_what``/``frame_question`` word the message)."""
     if far_idx.size:
         if options.drop_unanchored:
             summary.dropped = int(far_idx.size)
         else:
             primitives.append(SplatPrimitive(splats.subset(far_idx), None,
-                                             f"{input_stem(summary)} static", result.khr))
+                                             f"{input_stem(summary)} static", khr))
     if not primitives:
         raise BindingError(f"all {len(splats)} splats are farther than --max-distance from "
                            f"{from_what}, so --drop-unanchored leaves nothing to write "

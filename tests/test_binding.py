@@ -79,3 +79,35 @@ def test_regular_mask_is_the_frames_regularity():
     want = local_frames(tri).regular
     assert np.array_equal(regular_mask(tri), want) and 0 < want.sum() < len(tri)
     assert not want[70] and not regular_mask(tri)[70]
+
+
+def test_anchors_in_face_order_are_the_same_anchors_reordered():
+    """bind_local(in_face_order=True): the anchors of bind_local taken in face order, bit for
+    bit, the order given, the distances left in the splats' order; derive_local(order=) at
+    several chunk sizes and threads takes the same rows."""
+    from gsverse_format.anchors_derive import derive_local
+    from gsverse_format.model import face_order
+
+    mesh = bumpy_sphere(2, seed=6)
+    splats = random_splats(2_000, seed=7, spread=1.3)
+    plain = bind_local(splats, mesh)
+    assert plain.order is None
+    grouped = bind_local(splats, mesh, in_face_order=True)
+    order = face_order(plain.anchors.face_index)
+    assert np.array_equal(grouped.order, order)
+    assert grouped.distance.tobytes() == plain.distance.tobytes()
+    expected = plain.anchors.subset(order)
+    for name in ("face_index", "barycentrics", "normal_offset", "local_rotation", "local_scale"):
+        assert getattr(grouped.anchors, name).tobytes() == getattr(expected, name).tobytes(), name
+    face = plain.anchors.face_index.astype(np.int64)
+    whole = derive_local(mesh, face, splats.means, splats.rotations)
+    shuffled = np.random.default_rng(8).permutation(len(face))
+    for chunk, threads in ((7, 1), (300, 3), (5_000, 2)):
+        part = derive_local(mesh, face, splats.means, splats.rotations, chunk=chunk,
+                            threads=threads, order=shuffled)
+        for name in ("barycentrics", "normal_offset", "local_rotation"):
+            assert getattr(part, name).tobytes() == getattr(whole, name)[shuffled].tobytes()
+    with pytest.raises(ValueError, match="order"):
+        derive_local(mesh, face, splats.means, splats.rotations, order=shuffled[:-1])
+    empty = bind_local(random_splats(0, seed=1), mesh, in_face_order=True)
+    assert empty.order is not None and empty.order.size == 0

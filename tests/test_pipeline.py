@@ -11,8 +11,10 @@ from gsverse_format.pipeline import ConvertOptions, convert
 from gsverse_format.converters import detect_source
 from gsverse_format.examples import example_mesh, example_splats, write_obj
 from gsverse_format.io.gltf import read_gltf
-from gsverse_format.io.ply import write_splat_ply
+from gsverse_format.io.ply import read_splat_ply, write_splat_ply
+from gsverse_format.io.registry import FRAMES
 from gsverse_format.model import SplatCloud
+from gsverse_format.transform import rotate_splats
 
 from helpers import random_splats
 
@@ -40,6 +42,28 @@ def test_max_distance_keeps_far_splats_static(scene):
     assert [len(p.splats) for p in asset.anchored] == [n_near]
     assert [len(p.splats) for p in asset.static] == [n_far]
     assert summary.max_distance == pytest.approx(0.1 * summary.distance["mesh_diagonal"])
+
+
+@pytest.mark.parametrize("several", [False, True])
+def test_static_splats_take_the_sh_degree_and_order_of_the_input(scene, several):
+    """--sh-degree applies to the splats left static too, which keep the input's order, while
+    the anchored ones are grouped by face (one mesh, or --mesh given twice)."""
+    folder, n_near, n_far = scene
+    out = folder / "out.glb"
+    mesh = str(folder / "mesh.obj")
+    options = (ConvertOptions(meshes=[mesh, mesh], max_distance=0.1, sh_degree=0) if several
+               else ConvertOptions(mesh=mesh, max_distance=0.1, sh_degree=0))
+    summary = convert(str(folder / "scene.ply"), str(out), options)
+    assert summary.static == n_far
+    asset = read_gltf(out)
+    (static,) = asset.static
+    assert static.splats.sh_degree == 0 and all(p.splats.sh_degree == 0 for p in asset.anchored)
+    cloud = rotate_splats(read_splat_ply(folder / "scene.ply"), FRAMES["3dgs"].to_gltf)
+    np.testing.assert_array_equal(static.splats.means, cloud.means[n_near:])
+    np.testing.assert_array_equal(static.splats.sh[:, 0], cloud.sh[n_near:, 0])
+    for prim in asset.anchored:
+        face = prim.anchoring.anchors.face_index
+        assert np.all(np.diff(face.astype(np.int64)) >= 0)
 
 
 def test_drop_unanchored_and_absolute_distance(scene):
