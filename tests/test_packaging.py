@@ -32,6 +32,9 @@ def test_package_data_is_installed():
     assert (schema / "primitive.KHR_gaussian_splatting.GSVERSE_gaussian_splatting_mesh_anchor.schema.json").is_file()
     usd = resources.files("gsverse_format") / "usd_schema"
     assert (usd / "plugInfo.json").is_file() and (usd / "generatedSchema.usda").is_file()
+    # the compiled extensions' type stubs, beside the extensions
+    package = resources.files("gsverse_format")
+    assert (package / "_rows.pyi").is_file() and (package / "nearest" / "_native.pyi").is_file()
 
 
 def test_console_script_runs():
