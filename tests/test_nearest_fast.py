@@ -231,6 +231,30 @@ def test_nasty_mesh_equals_reference(seed):
             same_bits(getattr(again, name), getattr(res, name), f"{n} threads {name}")
 
 
+def test_float32_points_are_read_as_their_float64_values():
+    """The C search reads float32 points without a float64 copy: the results are those of the
+    same points converted first, at every method and level."""
+    from gsverse_format.nearest import _native
+    from gsverse_format.nearest.native import nearest_faces_native
+
+    v, f = nasty_mesh(seed=11)
+    p32 = query_points(v, f, 300, seed=12).astype(np.float32)
+    ref = nearest_triangles(p32.astype(np.float64), v, f, method="numpy")
+    for level in native_levels():
+        face, distance = nearest_faces_native(p32, v, f, _level=level)
+        same_bits(face, ref.face, f"float32 faces, level {level}")
+        same_bits(distance, ref.distance, f"float32 distances, level {level}")
+    res = nearest_triangles(p32, v, f, method="native")
+    for name in FIELDS:
+        same_bits(getattr(res, name), getattr(ref, name), f"float32 {name}")
+    order, sorted_points = np.empty(2, np.int64), np.empty((2, 3))
+    for bad in (np.zeros((2, 3), np.float16), np.zeros((2, 3), np.int64)):
+        with pytest.raises(TypeError, match="float64 or float32"):
+            _native.sort_queries(bad, order, sorted_points)
+    with pytest.raises(ValueError, match="size"):
+        _native.sort_queries(np.zeros(5, np.float32), order, sorted_points)
+
+
 def test_offset_and_scaled_mesh():
     """Tiny triangles far from the origin: the float32 boxes are coarser than the faces."""
     v, f = bumpy_icosphere(2, seed=8)

@@ -72,7 +72,7 @@ def nearest_triangles_native(points: ArrayLike, vertices: ArrayLike, faces: Arra
 
     Raises :class:`ImportError` when the extension was not built (see
     :func:`native_unavailable_reason`)."""
-    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk, float32_points=True)
     res = NearestResult.allocate(P.shape[0])
     _search(P, V, F, idx, chunk, progress, _level, res.face, res.distance, res.closest,
             res.barycentric)
@@ -86,7 +86,7 @@ def nearest_faces_native(points: ArrayLike, vertices: ArrayLike, faces: ArrayLik
     """``face`` and ``distance`` of :func:`nearest_triangles_native`, the same values,
     without its closest points and barycentrics: neither computed nor stored (48 bytes a
     point)."""
-    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk)
+    P, V, F, idx = prepare_query(points, vertices, faces, exclude, chunk, float32_points=True)
     face, distance = np.empty(P.shape[0], np.int64), np.empty(P.shape[0])
     _search(P, V, F, idx, chunk, progress, _level, face, distance, None, None)
     return face, distance
@@ -96,8 +96,9 @@ def _search(P: np.ndarray, V: np.ndarray, F: np.ndarray, idx: np.ndarray, chunk:
             progress: Callable[[int, int], None] | None, level: int | None,
             face: np.ndarray, distance: np.ndarray, closest: np.ndarray | None,
             barycentric: np.ndarray | None) -> None:
-    """The search of checked arguments (:func:`prepare_query`) into the given rows; the
-    closest points and barycentrics only when arrays for them are given."""
+    """The search of checked arguments (:func:`prepare_query`; ``P`` float64, or float32
+    converted exactly as the C code reads it) into the given rows; the closest points and
+    barycentrics only when arrays for them are given."""
     mod = _module()
     if mod is None:
         raise ImportError(native_unavailable_reason())
@@ -113,7 +114,7 @@ def _search(P: np.ndarray, V: np.ndarray, F: np.ndarray, idx: np.ndarray, chunk:
     tree = mod.build(V, F, np.ascontiguousarray(idx, dtype=np.int64), DEGENERATE_RATIO, threads)
     order = np.empty(n, np.int64)
     Ps = np.empty((n, 3))
-    mod.sort_queries(np.ascontiguousarray(P, dtype=np.float64), order, Ps)
+    mod.sort_queries(P, order, Ps)               # float32 points converted as they are read
     for lo in range(0, n, chunk):
         hi = min(lo + chunk, n)
         mod.query(tree, Ps, order, lo, hi, MARGIN, threads, face, distance, closest,

@@ -529,14 +529,20 @@ def _search_chunk(tree: _Tree, Q: np.ndarray) -> _Best:
 
 
 def prepare_query(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike,
-                  exclude: ArrayLike | None = None, chunk: int = 65536
+                  exclude: ArrayLike | None = None, chunk: int = 65536, *,
+                  float32_points: bool = False
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Validated inputs of a query, shared by both implementations.
+    """Validated inputs of a query, shared by the implementations.
 
     Returns ``(P (N, 3) float64, V (V, 3) float64, F (F, 3) int64, idx)`` with ``idx`` the
     indices of the selectable faces. Raises ``ValueError`` (see
-    :func:`nearest_triangles_numpy`)."""
-    P = np.asarray(points, dtype=np.float64)
+    :func:`nearest_triangles_numpy`). ``float32_points`` leaves float32 points as they are
+    (C-contiguous) for a caller that converts them to float64 as it reads them: the same
+    values, without a float64 copy of them all."""
+    P = np.asarray(points)
+    if not (float32_points and P.dtype == np.float32):
+        P = np.asarray(P, dtype=np.float64)
+    P = np.ascontiguousarray(P)
     V = np.asarray(vertices, dtype=np.float64)
     Fc = np.asarray(faces)
     if P.ndim != 2 or P.shape[1] != 3:

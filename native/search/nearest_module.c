@@ -7,14 +7,16 @@
  *
  *   build(V, F, idx, degenerate_ratio, threads) -> tree (a capsule)
  *   sort_queries(P, order, Ps)          coarse Morton order of P into order, P[order] into Ps
+ *                                       (P float64 or float32; Ps float64)
  *   query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric,
  *         level)                        the queries, by the loop compiled for `level`
  *                                       (closest and barycentric both None: not computed)
  *   level() -> the widest instruction level this CPU runs: 0 generic, 1 AVX2, 2 AVX-512F
  *             (x86-64 with GCC or clang; elsewhere always 0)
  *
- * Arrays are C-contiguous float64 ('d') or int64 buffers. The work runs without the
- * interpreter lock, on `threads` POSIX threads (the calling thread among them) that take build
+ * Arrays are C-contiguous float64 ('d') or int64 buffers (sort_queries also reads float32
+ * points). The work runs without the interpreter lock, on `threads` POSIX threads (the
+ * calling thread among them) that take build
  * tasks and blocks of 64 consecutive queries from a shared counter, so a thread kept off its
  * core delays only the block it holds.
  */
@@ -192,58 +194,102 @@ static PyObject *build(PyObject *self, PyObject *args)
 
 /* ------------------------------------------------------------------ query order */
 
+/* The Morton code of a grid cell: bit `bit` of (gx, gy, gz) at bit 3 bit + (0, 1, 2). */
+static uint32_t spread_bits(int64_t g)
+{
+    uint32_t out = 0;
+    int bit;
+    for (bit = 0; bit < ORDER_BITS; bit++) out |= (uint32_t)((g >> bit) & 1) << (3 * bit);
+    return out;
+}
+
+/* The counting sort of sort_queries over points of type T (float or double): the cells' codes
+ * into keys, the order, and the sorted points as double. */
+#define SORT_POINTS(NAME, T)                                                                 \
+static void NAME(const T *P, int64_t n, int64_t *order, double *Ps, uint32_t *keys,        \
+                 int64_t *count)                                                             \
+{                                                                                            \
+    const int64_t cells = (int64_t)1 << ORDER_BITS, n_codes = (int64_t)1 << (3 * ORDER_BITS); \
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}; \
+    double inv[3] = {0.0, 0.0, 0.0};                                                         \
+    uint32_t spread[1 << ORDER_BITS];                                                        \
+    int64_t i, c;                                                                            \
+    int d;                                                                                   \
+    for (c = 0; c < cells; c++) spread[c] = spread_bits(c);                                  \
+    for (i = 0; i < n; i++)                                                                  \
+        for (d = 0; d < 3; d++) {                                                            \
+            lo[d] = gsv__min(lo[d], (double)P[3 * i + d]);                                   \
+            hi[d] = gsv__max(hi[d], (double)P[3 * i + d]);                                   \
+        }                                                                                    \
+    for (d = 0; d < 3; d++)                                                                  \
+        if (hi[d] > lo[d]) inv[d] = ((double)cells - 1e-3) / (hi[d] - lo[d]);                \
+    for (i = 0; i < n; i++) {                                                                \
+        uint32_t code = 0;                                                                   \
+        for (d = 0; d < 3; d++) {                                                            \
+            int64_t g = (int64_t)gsv__min(gsv__max(((double)P[3 * i + d] - lo[d]) * inv[d],  \
+                                                   0.0), (double)cells - 1.0);               \
+            code |= spread[g] << d;                                                          \
+        }                                                                                    \
+        keys[i] = code;                                                                      \
+        count[code + 1]++;                                                                   \
+    }                                                                                        \
+    for (c = 0; c < n_codes; c++) count[c + 1] += count[c];                                  \
+    for (i = 0; i < n; i++) order[count[keys[i]]++] = i;                                     \
+    for (i = 0; i < n; i++)                                                                  \
+        for (d = 0; d < 3; d++) Ps[3 * i + d] = (double)P[3 * order[i] + d];                 \
+}
+
+SORT_POINTS(sort_points_f32, float)
+SORT_POINTS(sort_points_f64, double)
+
+static int is_float32(const Py_buffer *b)
+{
+    const char *f = b->format ? b->format : "B";
+    if (*f == '=' || *f == '<' || *f == '@') f++;
+    return b->itemsize == 4 && strcmp(f, "f") == 0;
+}
+
 static PyObject *sort_queries(PyObject *self, PyObject *args)
 {
     PyObject *oP, *oo, *os;
     Py_buffer b[3];
-    Py_ssize_t n, i;
-    int64_t *keys, *count, *order;
-    const double *P;
-    double *Ps;
-    const int64_t cells = (int64_t)1 << ORDER_BITS, n_codes = (int64_t)1 << (3 * ORDER_BITS);
+    Py_ssize_t n;
+    int64_t *count;
+    uint32_t *keys;
+    int f32;
+    const int64_t n_codes = (int64_t)1 << (3 * ORDER_BITS);
     (void)self;
     if (!PyArg_ParseTuple(args, "OOO", &oP, &oo, &os)) return NULL;
-    if (get(oP, &b[0], 0, 1, -1, 3, "points") < 0) return NULL;
-    n = b[0].len / 24;
+    /* the points: float64, or float32 (converted exactly as they are read) */
+    if (PyObject_GetBuffer(oP, &b[0], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    f32 = is_float32(&b[0]);
+    if (!f32 && !is_float64(&b[0])) {
+        PyErr_SetString(PyExc_TypeError, "points must be a float64 or float32 buffer");
+        release(b, 1);
+        return NULL;
+    }
+    if ((b[0].len / b[0].itemsize) % 3 != 0) {
+        PyErr_SetString(PyExc_ValueError, "points has the wrong size");
+        release(b, 1);
+        return NULL;
+    }
+    n = b[0].len / b[0].itemsize / 3;
     if (get(oo, &b[1], 1, 0, n, 1, "order") < 0) { release(b, 1); return NULL; }
     if (get(os, &b[2], 1, 1, 3 * n, 1, "sorted points") < 0) { release(b, 2); return NULL; }
-    keys = (int64_t *)PyMem_RawMalloc((size_t)(n > 0 ? n : 1) * sizeof(int64_t));
+    keys = (uint32_t *)PyMem_RawMalloc((size_t)(n > 0 ? n : 1) * sizeof(uint32_t));
     count = (int64_t *)PyMem_RawCalloc((size_t)n_codes + 1, sizeof(int64_t));
     if (!keys || !count) {
         PyMem_RawFree(keys); PyMem_RawFree(count);
         release(b, 3);
         return PyErr_NoMemory();
     }
-    P = (const double *)b[0].buf; order = (int64_t *)b[1].buf; Ps = (double *)b[2].buf;
     Py_BEGIN_ALLOW_THREADS
-    {
-        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        double inv[3] = {0.0, 0.0, 0.0};
-        int d, bit;
-        int64_t c;
-        for (i = 0; i < n; i++)
-            for (d = 0; d < 3; d++) {
-                lo[d] = gsv__min(lo[d], P[3 * i + d]);
-                hi[d] = gsv__max(hi[d], P[3 * i + d]);
-            }
-        for (d = 0; d < 3; d++)
-            if (hi[d] > lo[d]) inv[d] = ((double)cells - 1e-3) / (hi[d] - lo[d]);
-        for (i = 0; i < n; i++) {
-            int64_t code = 0;
-            for (d = 0; d < 3; d++) {
-                int64_t g = (int64_t)gsv__min(gsv__max((P[3 * i + d] - lo[d]) * inv[d], 0.0),
-                                              (double)cells - 1.0);
-                for (bit = 0; bit < ORDER_BITS; bit++)
-                    code |= ((g >> bit) & 1) << (3 * bit + d);
-            }
-            keys[i] = code;
-            count[code + 1]++;
-        }
-        for (c = 0; c < n_codes; c++) count[c + 1] += count[c];
-        for (i = 0; i < n; i++) order[count[keys[i]]++] = i;
-        for (i = 0; i < n; i++)
-            for (d = 0; d < 3; d++) Ps[3 * i + d] = P[3 * order[i] + d];
-    }
+    if (f32)
+        sort_points_f32((const float *)b[0].buf, n, (int64_t *)b[1].buf, (double *)b[2].buf,
+                        keys, count);
+    else
+        sort_points_f64((const double *)b[0].buf, n, (int64_t *)b[1].buf, (double *)b[2].buf,
+                        keys, count);
     Py_END_ALLOW_THREADS
     PyMem_RawFree(keys);
     PyMem_RawFree(count);
@@ -386,7 +432,8 @@ static PyMethodDef methods[] = {
     {"build", build, METH_VARARGS,
      "build(V, F, idx, degenerate_ratio, threads): the BVH over faces F[idx] (a capsule)."},
     {"sort_queries", sort_queries, METH_VARARGS,
-     "sort_queries(P, order, Ps): coarse Morton order of the points, and the sorted points."},
+     "sort_queries(P, order, Ps): coarse Morton order of the points (float64 or float32), and "
+     "the sorted points (float64)."},
     {"query", query, METH_VARARGS,
      "query(tree, Ps, order, lo, hi, margin, threads, face, distance, closest, barycentric, "
      "level): nearest faces of Ps[lo:hi], written to rows order[lo:hi] of the outputs "
