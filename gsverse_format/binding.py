@@ -41,7 +41,7 @@ class BindResult:
 
 def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "affine",
                progress: Callable[[int, int], None] | None = None,
-               in_face_order: bool = False) -> BindResult:
+               in_face_order: bool = False, derive: bool = True) -> BindResult:
     """Bind every splat of ``splats`` to its nearest non-degenerate face of ``mesh``.
 
     ``deformation`` is the law stored with the anchors, ``"affine"`` or ``"rigid"``
@@ -52,6 +52,11 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     in ``BindResult.order``: what a writer of compact anchors stores once the splats are
     reordered the same way, without reordering a second copy of the anchors. The anchors'
     values are the same, row by row.
+
+    ``derive=False`` leaves the barycentrics, offsets and local rotations to be derived when
+    first read (:meth:`LocalAnchors.deferred`), for a writer of compact glTF, which stores
+    none of them: the same values then, from the means and rotations ``splats`` holds now
+    (their arrays must not be changed in place until then; replacing them does no harm).
     """
     if deformation not in ("affine", "rigid"):
         raise ValueError(f"deformation must be 'affine' or 'rigid', got {deformation!r}")
@@ -73,12 +78,17 @@ def bind_local(splats: SplatCloud, mesh: TriangleMesh, *, deformation: str = "af
     # steps 2-3 of spec §Writing anchors: the rule readers of compact assets use too; float32
     # as stored, derived a chunk at a time (the float64 temporaries stay bounded)
     order = face_order(face) if in_face_order else None
-    derived = derive_local(mesh, face, splats.means, splats.rotations, frames=frames,
-                           dtype=np.float32, threads=native_threads(), order=order)
+    means, rotations = splats.means, splats.rotations
+
+    def anchor_values() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        d = derive_local(mesh, face, means, rotations, frames=frames, dtype=np.float32,
+                         threads=native_threads(), order=order)
+        return d.barycentrics, d.normal_offset, d.local_rotation
+
     if order is None:
         anchor_face, scales = face.astype(np.uint32), splats.scales
     else:
         anchor_face, scales = face[order].astype(np.uint32), take_rows(splats.scales, order)
-    anchors = LocalAnchors(anchor_face, derived.barycentrics, derived.normal_offset,
-                           derived.local_rotation, scales, law)
+    anchors = (LocalAnchors(anchor_face, *anchor_values(), scales, law) if derive
+               else LocalAnchors.deferred(anchor_face, scales, law, anchor_values))
     return BindResult(anchors, distance, int(np.count_nonzero(~frames.regular)), order)

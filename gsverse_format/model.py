@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import sys
 from dataclasses import dataclass, field
-from typing import Any, Literal, Union
+from typing import TYPE_CHECKING, Any, Callable, Literal, Union
 
 import numpy as np
 
@@ -280,12 +280,57 @@ class LocalAnchors:
     def __len__(self) -> int:
         return int(self.face_index.shape[0])
 
+    @classmethod
+    def deferred(cls, face_index: np.ndarray, local_scale: np.ndarray,
+                 deformation: DeformationLaw,
+                 derive: Callable[[], tuple[np.ndarray, np.ndarray, np.ndarray]]
+                 ) -> "LocalAnchors":
+        """Anchors whose ``barycentrics``, ``normal_offset`` and ``local_rotation`` are
+        derived when first read: ``derive()`` returns them (the rule of
+        :func:`gsverse_format.anchors_derive.derive_local`, from the rest pose they were bound
+        in). The binder returns these for a compact glTF, which stores none of the three (its
+        readers derive them); anything that reads one gets all three, as the eager binder
+        would have computed them."""
+        anchors = cls.__new__(cls)
+        anchors.face_index = _as(face_index, np.uint32, (), "face_index")
+        anchors.local_scale = _as(local_scale, np.float32, (3,), "local_scale",
+                                  anchors.face_index.shape[0])
+        if deformation not in ("affine", "rigid"):
+            raise ValueError(f"deformation must be 'affine' or 'rigid', got {deformation!r}")
+        anchors.deformation = deformation
+        anchors.__dict__["_derive"] = derive
+        return anchors
+
+    if not TYPE_CHECKING:       # (a __getattr__ would make every attribute name type-check)
+        def __getattr__(self, name: str) -> Any:
+            # called only for attributes the instance lacks: those of deferred() not derived
+            derive = self.__dict__.get("_derive")
+            if derive is None or name not in _DERIVED_FIELDS:
+                raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+            bary, offset, rotation = derive()
+            n = self.face_index.shape[0]
+            self.__dict__.update(
+                barycentrics=_as(bary, np.float32, (2,), "barycentrics", n),
+                normal_offset=_as(offset, np.float32, (), "normal_offset", n),
+                local_rotation=_as(rotation, np.float32, (4,), "local_rotation", n))
+            del self.__dict__["_derive"]
+            return self.__dict__[name]
+
+    @property
+    def derived(self) -> bool:
+        """False for anchors of :meth:`deferred` whose three derived arrays were not read."""
+        return "_derive" not in self.__dict__
+
     def subset(self, index) -> "LocalAnchors":
         return LocalAnchors(take_rows(self.face_index, index),
                             take_rows(self.barycentrics, index),
                             take_rows(self.normal_offset, index),
                             take_rows(self.local_rotation, index),
                             take_rows(self.local_scale, index), self.deformation)
+
+
+#: The arrays of :class:`LocalAnchors` that :meth:`LocalAnchors.deferred` derives when read.
+_DERIVED_FIELDS = ("barycentrics", "normal_offset", "local_rotation")
 
 
 @dataclass
@@ -544,8 +589,11 @@ def check_primitive(i: int, prim: SplatPrimitive) -> None:
         raise UsageError(f"{label} has anchor face index {int(anchors.face_index.max())} out "
                          f"of range for a mesh with {mesh.face_count} faces")
     if isinstance(anchors, LocalAnchors):
-        _require_finite(f"{label} anchors", anchors.barycentrics, anchors.normal_offset,
-                        anchors.local_rotation, anchors.local_scale)
+        # deferred anchors not read yet are not derived for this check: the binder bound them
+        # to faces regular at rest, where the rule gives finite values for finite splats
+        derived = ((anchors.barycentrics, anchors.normal_offset, anchors.local_rotation)
+                   if anchors.derived else ())
+        _require_finite(f"{label} anchors", *derived, anchors.local_scale)
     elif isinstance(anchors, GamesAnchors):
         _require_finite(f"{label} anchors", anchors.barycentrics, anchors.rho)
     else:

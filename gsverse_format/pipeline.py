@@ -539,8 +539,11 @@ def _anchor(result: SourceResult, options: ConvertOptions, progress: Progress,
     sorted_order = None       # when set: the anchors are already in this (face) order
     if anchors is None:
         progress.stage("binding to the nearest triangles")
+        # a compact glTF stores no derived anchor value: derived only if something reads one
+        compact = (options.anchors in (None, "compact") and not options.keep_order
+                   and find_format(summary.output, "write").name == "gltf")
         try:
-            bound = bind_local(splats, mesh, deformation=options.deformation,
+            bound = bind_local(splats, mesh, deformation=options.deformation, derive=not compact,
                                progress=progress.update, in_face_order=not options.keep_order)
         except GsverseError as exc:
             raise exc.with_path(options.mesh or summary.input)

@@ -111,3 +111,55 @@ def test_anchors_in_face_order_are_the_same_anchors_reordered():
         derive_local(mesh, face, splats.means, splats.rotations, order=shuffled[:-1])
     empty = bind_local(random_splats(0, seed=1), mesh, in_face_order=True)
     assert empty.order is not None and empty.order.size == 0
+
+
+def test_deferred_anchors_are_derived_when_first_read(monkeypatch):
+    """bind_local(derive=False): nothing derived until one of the three derived arrays is read;
+    then all three, the eager binder's values bit for bit; a compact glTF conversion never
+    reads them, an explicit one does."""
+    import gsverse_format.binding as binding
+    from gsverse_format.model import LocalAnchors
+
+    calls = []
+    real = binding.derive_local
+    monkeypatch.setattr(binding, "derive_local", lambda *a, **k: calls.append(1) or real(*a, **k))
+    mesh = bumpy_sphere(2, seed=9)
+    splats = random_splats(1_500, seed=10, spread=1.3)
+    eager = bind_local(splats, mesh, in_face_order=True)
+    assert len(calls) == 1 and eager.anchors.derived
+    lazy = bind_local(splats, mesh, in_face_order=True, derive=False)
+    assert len(calls) == 1 and not lazy.anchors.derived
+    assert lazy.anchors.face_index.tobytes() == eager.anchors.face_index.tobytes()
+    assert lazy.anchors.local_scale.tobytes() == eager.anchors.local_scale.tobytes()
+    assert len(lazy.anchors) == len(splats) and lazy.anchors.profile == "local"
+    with pytest.raises(AttributeError, match="no_such"):
+        lazy.anchors.no_such
+    assert not lazy.anchors.derived
+    assert lazy.anchors.normal_offset.tobytes() == eager.anchors.normal_offset.tobytes()
+    assert len(calls) == 2 and lazy.anchors.derived
+    for name in ("barycentrics", "local_rotation"):
+        assert getattr(lazy.anchors, name).tobytes() == getattr(eager.anchors, name).tobytes()
+    assert len(calls) == 2
+    with pytest.raises(ValueError, match="deformation"):
+        LocalAnchors.deferred(np.zeros(1), np.ones((1, 3)), "bent", lambda: None)
+
+
+@pytest.mark.parametrize("layout, derived", [(None, 0), ("explicit", 1)])
+def test_a_compact_gltf_conversion_derives_no_anchor(tmp_path, monkeypatch, layout, derived):
+    import gsverse_format.binding as binding
+    from gsverse_format.examples import example_mesh, example_splats, write_obj
+    from gsverse_format.io.gltf import read_gltf
+    from gsverse_format.io.ply import write_splat_ply
+    from gsverse_format.pipeline import ConvertOptions, convert
+
+    mesh = example_mesh(subdivisions=2)
+    write_splat_ply(example_splats(mesh, count=400, seed=2), tmp_path / "s.ply")
+    write_obj(mesh, str(tmp_path / "m.obj"))
+    calls = []
+    real = binding.derive_local
+    monkeypatch.setattr(binding, "derive_local", lambda *a, **k: calls.append(1) or real(*a, **k))
+    summary = convert(str(tmp_path / "s.ply"), str(tmp_path / "o.glb"),
+                      ConvertOptions(mesh=str(tmp_path / "m.obj"), anchors=layout))
+    assert summary.anchors == (layout or "compact") and len(calls) == derived
+    (prim,) = read_gltf(tmp_path / "o.glb").anchored          # readable, anchors derived
+    assert np.all(np.isfinite(prim.anchoring.anchors.barycentrics))
