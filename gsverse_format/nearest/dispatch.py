@@ -70,7 +70,30 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
     ``"native"`` where the C search was not built, or ``"numba"`` without numba, raises
     :class:`~gsverse_format.backend.BackendUnavailableError` (an ``ImportError``).
     """
+    return _run(_choose(method, points, faces), points, vertices, faces, exclude, chunk,
+                progress)
+
+
+def nearest_faces(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
+                  exclude: ArrayLike | None = None, chunk: int = 65536,
+                  progress: Callable[[int, int], None] | None = None,
+                  method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
+    """``(face, distance)`` of :func:`nearest_triangles` (same arguments, same values) for
+    callers that need no closest points: the C search then neither computes nor stores them
+    and their barycentrics (48 bytes a point); the other implementations compute them and
+    drop them."""
     chosen = _choose(method, points, faces)
+    if chosen == "native":
+        return nearest_faces_native(points, vertices, faces, exclude=exclude, chunk=chunk,
+                                    progress=progress)
+    res = _run(chosen, points, vertices, faces, exclude, chunk, progress)
+    return res.face, res.distance
+
+
+def _run(chosen: str, points: ArrayLike, vertices: ArrayLike, faces: ArrayLike,
+         exclude: ArrayLike | None, chunk: int,
+         progress: Callable[[int, int], None] | None) -> NearestResult:
+    """The whole search by the implementation :func:`_choose` chose."""
     if chosen == "native":
         return nearest_triangles_native(points, vertices, faces, exclude=exclude, chunk=chunk,
                                         progress=progress)
@@ -82,22 +105,6 @@ def nearest_triangles(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, 
                                            chunk=chunk, progress=progress)
     return nearest_triangles_numpy(points, vertices, faces, exclude=exclude, chunk=chunk,
                                    progress=progress)
-
-
-def nearest_faces(points: ArrayLike, vertices: ArrayLike, faces: ArrayLike, *,
-                  exclude: ArrayLike | None = None, chunk: int = 65536,
-                  progress: Callable[[int, int], None] | None = None,
-                  method: str = "auto") -> tuple[np.ndarray, np.ndarray]:
-    """``(face, distance)`` of :func:`nearest_triangles` (same arguments, same values) for
-    callers that need no closest points: the C search then neither computes nor stores them
-    and their barycentrics (48 bytes a point); the other implementations compute them and
-    drop them."""
-    if _choose(method, points, faces) == "native":
-        return nearest_faces_native(points, vertices, faces, exclude=exclude, chunk=chunk,
-                                    progress=progress)
-    res = nearest_triangles(points, vertices, faces, exclude=exclude, chunk=chunk,
-                            progress=progress, method=method)
-    return res.face, res.distance
 
 
 def _choose(method: str, points: ArrayLike, faces: ArrayLike) -> str:
