@@ -141,7 +141,7 @@ def _arith_kernel():
 
 def face_arithmetic_ns(reps: int = 2000) -> float:
     """Nanoseconds a face of the float64 arithmetic alone of the affine face step (two square
-    roots, four divisions, as :func:`gsverse_format.remapping.compiled_runs._affine_rows`
+    roots, four divisions, as :func:`gsverse_format.remapping.compiled_runs._affine_block`
     computes them), in a loop LLVM vectorises, on one core, with no gather and no table row:
     a lower bound of any face step that keeps the faces in float64. Median of 5 timings."""
     kernel = _arith_kernel()

@@ -295,12 +295,15 @@ def test_one_pass_over_runs_equals_two_passes(mesh, anchorings, kind):
 @pytest.mark.parametrize("law", ["affine", "rigid", "games"])
 def test_vectorised_loops_give_the_bits_of_the_scalar_rows(mesh, anchorings, law):
     """The one-pass kernels without rotations and scales run vectorised loops: the affine law's
-    faces FACE_BLOCK at a time (compiled_runs._affine_rows), and the splats of every run of
-    at least SHORT_RUN splats (compiled_runs._local_run_splats, _games_run_splats); the two
-    passes use the scalar rows. Same bits on every deformation (collapsed faces: a_c = 0;
-    inverted; far from the origin; float32 and float64 vertices), on faces degenerate at
-    rest (recomputed by the scalar row), on runs of every length (about 12 splats a face
-    here) and on blocks and runs cut short by a run plan's small chunks."""
+    faces FACE_BLOCK at a time (compiled_runs._affine_block), and the splats of every run of
+    at least SHORT_RUN splats, or of PAD_FROM splats padded into the following runs
+    (compiled_runs._local_run_splats, _games_run_splats, _padded_count); the two passes use
+    the scalar rows. Same bits on every deformation (collapsed faces: a_c = 0; inverted; far
+    from the origin; float32 and float64 vertices), on faces degenerate at rest (recomputed
+    by the scalar row), on runs of every length (about 12 splats a face here: runs padded
+    over the next ones, runs too short to pad) and on blocks, runs and padding cut short by a
+    run plan's small chunks (of FACE_BLOCK + 7 splats: no run is padded past a chunk's end,
+    where another thread may be writing)."""
     from gsverse_format.remapping import compiled_runs as runs
 
     rng = np.random.default_rng(21)
@@ -310,8 +313,14 @@ def test_vectorised_loops_give_the_bits_of_the_scalar_rows(mesh, anchorings, law
     faces[::5, 2] = faces[::5, 1]                 # two equal corners: zero rest area
     deg_mesh = TriangleMesh(v.astype(np.float32), faces)
     base = anchorings[law].anchors
+    base = base.subset(np.argsort(base.face_index, kind="stable"))
+    # Runs too short to pad: every seventh face keeps only its first one, two or three splats.
+    face = base.face_index
+    rank = np.arange(len(face)) - np.searchsorted(face, face)       # place in the face's run
+    base = base.subset(np.flatnonzero((face % 7 != 0) | (rank < face % 3 + 1)))
     lengths = np.bincount(base.face_index)
-    assert lengths.max() >= 2 * runs.SHORT_RUN and lengths[lengths > 0].min() < runs.SHORT_RUN
+    assert lengths.max() >= 2 * runs.SHORT_RUN and lengths[lengths > 0].min() < runs.PAD_FROM
+    assert np.any((lengths >= runs.PAD_FROM) & (lengths % runs.SHORT_RUN != 0))
     for m in (mesh, deg_mesh):
         anchors = base.subset(np.argsort(base.face_index, kind="stable"))
         sorted_ = Anchoring(m, anchors)
@@ -337,6 +346,21 @@ def test_vectorised_loops_give_the_bits_of_the_scalar_rows(mesh, anchorings, law
                     assert np.array_equal(getattr(again, field), got, equal_nan=True), (
                         name, dtype, field)
         _check_against_reference(sorted_, None, one.remap())
+
+
+def test_padded_count():
+    """Runs of PAD_FROM splats on are rounded up to whole vectors of SHORT_RUN splats, never
+    past the end of their chunk; shorter runs are left as they are."""
+    from gsverse_format.remapping import compiled_runs as runs
+
+    w = runs.SHORT_RUN
+    assert runs.PAD_FROM <= w
+    assert runs._padded_count(np.uint32(0), runs.PAD_FROM - 1, 4096) == runs.PAD_FROM - 1
+    assert runs._padded_count(np.uint32(0), runs.PAD_FROM, 4096) == w
+    assert runs._padded_count(np.uint32(40), w + 1, 4096) == 2 * w
+    assert runs._padded_count(np.uint32(40), 2 * w, 4096) == 2 * w
+    assert runs._padded_count(np.uint32(4090), 5, 4096) == 6         # cut at the chunk's end
+    assert runs._padded_count(np.uint32(2**32 - 9), 5, 2**32 - 1) == 8
 
 
 def test_run_plan():

@@ -21,25 +21,31 @@ pass):
   chunk it holds (at most ``CHUNK`` splats), instead of for half of every pass.
 
 Vectorised face step (``local`` profile, affine law, no rigid pairs: the default). A chunk's
-faces are computed :data:`FACE_BLOCK` at a time in a per-worker float64 workspace laid out as a
-structure of arrays (one row of :data:`FACE_BLOCK` values per quantity, at offsets that are
-compile-time constants, so that LLVM sees no aliasing and needs no run-time checks): a scalar
-loop gathers the three corners and the rest quantities of each face, a branch-free loop
+runs are taken :data:`FACE_BLOCK` at a time: their faces are computed in a per-worker float64
+workspace laid out as a structure of arrays (one row of :data:`FACE_BLOCK` values per
+quantity, at offsets that are compile-time constants, so that LLVM sees no aliasing and needs
+no run-time checks), then the splats of those runs are remapped, each run reading its face's
+21 values from the workspace once (rounded to float32 as a table row would store them). A
+scalar loop gathers the three corners and the rest quantities of each face, a branch-free loop
 computes the 22 table values of :func:`gsverse_format.remapping.compiled.local_face_row`
 four faces per AVX2 instruction (``vsqrtpd``, ``vdivpd``: the same correctly rounded
-operations in the same order, so the same bits), and a third loop stores them into the rows.
-Faces degenerate at rest are then recomputed by the scalar row (a current frame is needed
-there). Measured on the benchmark's 100k-face mesh, one thread, two-pass face timing:
-26 ns a face scalar, 18 ns blocked (gather 4.7 ns, arithmetic 3.6 ns, the float64 → float32
-transposition into the rows 9.4 ns). The rigid law and the rigid pairs keep the scalar rows.
+operations in the same order, so the same bits); faces degenerate at rest are then recomputed
+by the scalar row (a current frame is needed there) and copied into the workspace. There is
+no per-run table, so no float64 → float32 transposition into rows (9.4 ns a face, measured
+with blocks of 32 and a table) and no table streamed through memory. Measured side by side
+on the benchmark's 100k-face mesh, 1M splats, the faces alone: one thread 1.27 → 0.85 ms, two
+threads 1.03 → 0.48 ms. The rigid law and the rigid pairs keep the scalar rows of a table.
 
 Vectorised splat loop (both profiles, without rotations and scales). The splats of a run of at
 least :data:`SHORT_RUN` splats are remapped in a loop over that run alone, its face's row read
 once before it (:func:`_local_run_splats`, :func:`_games_run_splats`), which LLVM vectorises
 eight splats per AVX2 instruction; shorter runs take the scalar rows. 1M splats on 100k
 faces (about 10 a run), one thread: ``local`` 12.1 → 10.4 ms, ``games`` 16.7 → 14.4 ms. Runs
-of about 10 splats leave part of the work to the loops' scalar remainders, so the gain grows
-with the splats a face carries. With rotations and scales the spans of
+of about 10 splats would leave about 3.5 splats each to the loop's scalar remainder (a scalar
+splat costs about two vector lanes), so from :data:`PAD_FROM` splats on a run is remapped in
+whole vectors, running over into the following runs of its chunk, which then overwrite those
+splats (:func:`_padded_count`). Together with the face blocks, 1M splats on 100k faces, two
+threads, measured side by side: ``local``/affine 3.62 → 3.06 ms; one thread 6.86 → 5.71 ms. With rotations and scales the spans of
 :mod:`gsverse_format.remapping.compiled` stay scalar (more output streams than LLVM checks for
 overlap).
 
@@ -63,16 +69,20 @@ from numba import njit, prange
 
 from ..backend import configure_numba
 from ..compiled_chunks import next_chunk
-from .compiled import (CHUNK, games_face_row, games_splat, games_splat_row, games_splat_span,
-                       local_face_row, local_splat, local_splat_row, local_splat_span)
+from .compiled import (CHUNK, TABLE_WIDTH, games_face_row, games_splat, games_splat_row,
+                       games_splat_span, local_face_row, local_splat, local_splat_span)
 
 configure_numba()
 
 __all__ = ["CHUNK", "FACE_BLOCK", "RunPlan", "plan_runs", "local_runs", "games_runs"]
 
-#: Faces the vectorised face step computes together (its workspace, 35 float64 rows of this
-#: many values, 8.8 KiB, stays in the L1 cache; 32 and 64 measured alike, 256 slower).
-FACE_BLOCK = 32
+#: Faces the vectorised face step computes together before their splats are remapped (two
+#: AVX2 vectors of float64; its workspace, 35 float64 rows of this many values, is 2.2 KiB).
+#: Measured side by side (two runs), 1M splats on 100k faces, one thread: 8 faces 5.6–5.8 ms,
+#: 16 5.9 ms, 32 6.8 ms, 128 8.5 ms; two threads: 3.2–3.3, 3.4, 3.9, 4.7 ms. Between two blocks the splat
+#: loop streams about ten splats a face, so a small block keeps the faces' gathers, whose
+#: vertices miss the caches, close to the streaming they overlap with.
+FACE_BLOCK = 8
 _IN = 13            # gathered per face: v0, v1, v2 (9), then C_r⁻¹ (i00, i01, i11) and √a_r
 _OUT = 22           # computed per face: the 22 columns of a ``local`` table row
 #: float64 values of one worker's workspace.
@@ -83,7 +93,10 @@ WORKSPACE = (_IN + _OUT) * FACE_BLOCK
 #: run: 2.97 ms with every run through the vectorised loop, 2.48 ms with this threshold; 1M
 #: splats, about 10 a run: 10.4 ms both ways, against 12.1 ms without the vectorised loop).
 SHORT_RUN = 8
-
+#: Runs of at least this many splats are remapped in whole vectors (:func:`_padded_count`).
+#: Measured side by side: from 4 on, 100k splats on 100k faces 0.75 ms on two threads;
+#: from 2 on, 0.96 ms; from 6 on, 0.79 ms (1M splats: 3.01, 3.04, 3.06 ms).
+PAD_FROM = 4
 
 
 class RunPlan:
@@ -129,14 +142,15 @@ def plan_runs(face_index: np.ndarray, n_faces: int, chunk: int = CHUNK) -> RunPl
 
 
 @njit(cache=True, inline="always")
-def _affine_rows(vertices, faces, rest, run_face, r0, r1, table, qrun, ws):
-    """Table rows ``r0 .. r1 - 1`` (``local`` profile, affine law, no frame) of the faces
-    ``run_face[r]``, :data:`FACE_BLOCK` at a time in the workspace ``ws`` (:data:`WORKSPACE`
-    float64): the values and bits of :func:`local_face_row`, which recomputes faces degenerate
-    at rest."""
+def _affine_block(vertices, faces, rest, run_face, b0, m, ws, scratch, qrun):
+    """The faces ``run_face[b0 .. b0 + m - 1]`` (``m`` ≤ :data:`FACE_BLOCK`; ``local`` profile,
+    affine law, no frame) in the workspace ``ws`` (:data:`WORKSPACE` float64): column ``j`` of
+    rows ``_IN .. _IN + _OUT - 1`` holds the table row of face ``run_face[b0 + j]``, whose
+    float32 roundings (:func:`_ws_face`) are the values and bits of :func:`local_face_row`.
+    Faces degenerate at rest are recomputed by that scalar row (into ``scratch``, float32)
+    and copied back."""
     B = FACE_BLOCK
-    for b0 in range(r0, r1, B):
-        m = min(b0 + B, r1) - b0
+    if m > 0:
         for j in range(m):                                   # gather
             f = run_face[b0 + j]
             i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
@@ -200,15 +214,50 @@ def _affine_rows(vertices, faces, rest, run_face, r0, r1, table, qrun, ws):
             ws[o + 19 * B] = e1z * i01 + e2z * i11
             ws[o + 20 * B] = mz
             ws[o + 21 * B] = k
-        for j in range(m):                                   # into the rows
-            r = b0 + j
-            f = run_face[r]
-            row = table[r]
-            if rest[f, 4] != 0.0:
+        for j in range(m):                                   # faces degenerate at rest
+            f = run_face[b0 + j]
+            if rest[f, 4] == 0.0:
+                local_face_row(vertices, faces, rest, False, f, scratch, qrun, b0 + j, False)
                 for c in range(_OUT):
-                    row[c] = ws[(_IN + c) * B + j]
-            else:
-                local_face_row(vertices, faces, rest, False, f, row, qrun, r, False)
+                    ws[(_IN + c) * B + j] = scratch[c]
+
+
+@njit(cache=True, inline="always")
+def _ws_face(ws, j):
+    """The first 21 values of the table row in column ``j`` of the workspace, in float32."""
+    B = FACE_BLOCK
+    o = _IN * B + j
+    return (np.float32(ws[o]), np.float32(ws[o + B]), np.float32(ws[o + 2 * B]),
+            np.float32(ws[o + 3 * B]), np.float32(ws[o + 4 * B]), np.float32(ws[o + 5 * B]),
+            np.float32(ws[o + 6 * B]), np.float32(ws[o + 7 * B]), np.float32(ws[o + 8 * B]),
+            np.float32(ws[o + 9 * B]), np.float32(ws[o + 10 * B]),
+            np.float32(ws[o + 11 * B]), np.float32(ws[o + 12 * B]),
+            np.float32(ws[o + 13 * B]), np.float32(ws[o + 14 * B]),
+            np.float32(ws[o + 15 * B]), np.float32(ws[o + 16 * B]),
+            np.float32(ws[o + 17 * B]), np.float32(ws[o + 18 * B]),
+            np.float32(ws[o + 19 * B]), np.float32(ws[o + 20 * B]))
+
+
+@njit(cache=True, inline="always")
+def _padded_count(first, count, stop):
+    """Splats to remap from ``first`` for a run of ``count`` splats of a chunk that ends at
+    ``stop``: from :data:`PAD_FROM` splats on, ``count`` rounded up to a multiple of
+    :data:`SHORT_RUN` (the vector width), or to ``stop`` where that comes first.
+
+    The splats past the run belong to the runs that follow it in the same chunk. The vectorised
+    loop computes them with this run's face, and the following runs, remapped after this one
+    by the same thread, overwrite them with their own results. So the loop runs whole vectors
+    and no splat is left to its scalar remainder (about 3.5 splats a run, each costing about
+    two vector lanes), and the extra splats are already in the cache. Nothing outside the
+    chunk is read or written. The end is computed as a uint32, as ``run_start`` holds it, so
+    that LLVM can bound the addresses and still vectorise (from an int64 end it found "too
+    many SCEV assumptions"). Measured side by side, 1M splats on 100k faces, two threads:
+    3.33 → 3.06 ms."""
+    if count < PAD_FROM:
+        return count
+    end = np.uint32(min(np.int64(first) + (count + SHORT_RUN - 1) // SHORT_RUN * SHORT_RUN,
+                        np.int64(stop)))
+    return np.int64(end) - np.int64(first)
 
 
 @njit(cache=True, inline="always")
@@ -229,9 +278,9 @@ def _store(means, cov6, i, mx, my, mz, s00, s01, s02, s11, s12, s22):
 
 
 @njit(cache=True, inline="always")
-def _local_run_splats(consts, t, means, cov6, first, count):
-    """``local`` splats ``first .. first + count - 1`` of one run (no rigid pairs), its face's
-    table row ``t`` read once before the loop; ``consts``, ``means`` and ``cov6`` flattened
+def _local_run_splats(consts, face, means, cov6, first, count):
+    """``local`` splats ``first .. first + count - 1`` of one run (no rigid pairs) on ``face``,
+    the first 21 values of its face's table row; ``consts``, ``means`` and ``cov6`` flattened
     (N·12, N·3, N·6). LLVM vectorises the loop over the run's splats, eight per AVX2
     instruction, with the explicit FMAs of :func:`local_splat` in every lane (so the bits of
     :func:`~gsverse_format.remapping.compiled.local_splat_row`). It does so only because the
@@ -239,8 +288,6 @@ def _local_run_splats(consts, t, means, cov6, first, count):
     be 1 and found dependences between a splat's outputs and the next splat's) and the index
     ``first + j`` is provably non-negative (``first`` uint32, ``j`` counted from 0): with a
     signed start numba's negative-index wrap-around makes the addresses non-affine."""
-    face = (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
-            t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19], t[20])
     for j in range(count):
         i = first + j
         c = i * 12
@@ -249,6 +296,30 @@ def _local_run_splats(consts, t, means, cov6, first, count):
              consts[c + 5], consts[c + 6], consts[c + 7], consts[c + 8], consts[c + 9],
              consts[c + 10], consts[c + 11]), face)
         _store(means, cov6, i, mx, my, mz, s00, s01, s02, s11, s12, s22)
+
+
+@njit(cache=True, inline="always")
+def _local_splats(consts, face, means, cov6, flat_consts, flat_means, flat_cov6, first, count):
+    """``local`` splats ``first .. first + count - 1`` of one run on ``face`` (no rigid pairs):
+    the vectorised loop from :data:`SHORT_RUN` splats on, else the scalar rows."""
+    if count >= SHORT_RUN:
+        _local_run_splats(flat_consts, face, flat_means, flat_cov6, first, count)
+    else:
+        for j in range(count):
+            i = first + j
+            c = consts[i]
+            mx, my, mz, s00, s01, s02, s11, s12, s22 = local_splat(
+                (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11]),
+                face)
+            means[i, 0] = mx
+            means[i, 1] = my
+            means[i, 2] = mz
+            cov6[i, 0] = s00
+            cov6[i, 1] = s01
+            cov6[i, 2] = s02
+            cov6[i, 3] = s11
+            cov6[i, 4] = s12
+            cov6[i, 5] = s22
 
 
 @njit(parallel=True, cache=True)
@@ -260,40 +331,52 @@ def local_runs(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid:
     """One-pass remap of the ``local`` profile: per chunk, the faces of its runs into rows
     ``chunk_run[c] .. chunk_run[c + 1]`` of ``table`` (R, :data:`TABLE_WIDTH`) (and ``qrun``
     (R, 4) when the rigid pairs are wanted, i.e. ``rotations`` has N rows), then its splats.
-    The affine law without rigid pairs computes the faces with :func:`_affine_rows`."""
+    The affine law without rigid pairs uses no table (it may have no rows): it takes the
+    runs :data:`FACE_BLOCK` at a time, their faces computed by :func:`_affine_block`, then
+    their splats."""
     n = consts.shape[0]
     want = rotations.shape[0] == n and n > 0
     blocked = not rigid and not want
     n_chunks = chunk_run.shape[0] - 1
     counter = np.zeros(1, np.int64)
     workspace = np.empty((workers, WORKSPACE), np.float64)
+    scratch = np.empty((workers, TABLE_WIDTH), np.float32)
     flat_consts, flat_means, flat_cov6 = consts.reshape(-1), means.reshape(-1), cov6.reshape(-1)
     for w in prange(workers):
         ws = workspace[w]
+        row = scratch[w]
         while True:
             c, start, stop = next_chunk(counter, chunk, n)
             if c >= n_chunks:
                 break
             if blocked:
-                _affine_rows(vertices, faces, rest, run_face, chunk_run[c], chunk_run[c + 1],
-                             table, qrun, ws)
-            else:
-                for r in range(chunk_run[c], chunk_run[c + 1]):
-                    local_face_row(vertices, faces, rest, rigid, run_face[r], table[r], qrun,
-                                   r, want)
+                last = chunk_run[c + 1]
+                for b0 in range(chunk_run[c], last, FACE_BLOCK):
+                    m = min(b0 + FACE_BLOCK, last) - b0
+                    _affine_block(vertices, faces, rest, run_face, b0, m, ws, row, qrun)
+                    for j in range(m):
+                        first = run_start[b0 + j]
+                        count = _padded_count(
+                            first, np.int64(run_start[b0 + j + 1]) - np.int64(first), stop)
+                        _local_splats(consts, _ws_face(ws, j), means, cov6, flat_consts,
+                                      flat_means, flat_cov6, first, count)
+                continue
+            for r in range(chunk_run[c], chunk_run[c + 1]):
+                local_face_row(vertices, faces, rest, rigid, run_face[r], table[r], qrun, r,
+                               want)
             if want:
                 local_splat_span(run_of, consts, table, qrun, qlocal, slocal, means, cov6,
                                  rotations, scales, start, stop, want)
             else:
                 for r in range(chunk_run[c], chunk_run[c + 1]):
+                    t = table[r]
                     first = run_start[r]
-                    count = np.int64(run_start[r + 1]) - np.int64(first)
-                    if count >= SHORT_RUN:
-                        _local_run_splats(flat_consts, table[r], flat_means, flat_cov6, first,
-                                          count)
-                    else:
-                        for j in range(count):
-                            local_splat_row(consts, table[r], means, cov6, first + j)
+                    count = _padded_count(first, np.int64(run_start[r + 1]) - np.int64(first),
+                                          stop)
+                    _local_splats(consts, (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7],
+                                           t[8], t[9], t[10], t[11], t[12], t[13], t[14],
+                                           t[15], t[16], t[17], t[18], t[19], t[20]),
+                                  means, cov6, flat_consts, flat_means, flat_cov6, first, count)
 
 
 @njit(cache=True, inline="always")
@@ -341,7 +424,8 @@ def games_runs(vertices: np.ndarray, faces: np.ndarray, run_face: np.ndarray,
                 continue
             for r in range(chunk_run[c], chunk_run[c + 1]):
                 first = run_start[r]
-                count = np.int64(run_start[r + 1]) - np.int64(first)
+                count = _padded_count(first, np.int64(run_start[r + 1]) - np.int64(first),
+                                      stop)
                 if count >= SHORT_RUN:
                     _games_run_splats(flat_consts, table[r], flat_means, flat_cov6, first,
                                       count)

@@ -158,7 +158,9 @@ class FastRemapper:
         self._kernels = compiled
         self._runs_kernels = compiled_runs
         rows = self.n_faces if self._plan is None else self._plan.runs
-        self._table = np.zeros((rows, compiled.TABLE_WIDTH), np.float32)
+        # The one pass of the affine law keeps its faces in a per-thread workspace: no table.
+        table_rows = 0 if self._plan is not None and self.law == "affine" else rows
+        self._table = np.zeros((table_rows, compiled.TABLE_WIDTH), np.float32)
         self._qlocal, self._slocal, self._qface = _EMPTY4, _EMPTY3, _EMPTY4
         if isinstance(anchors, GamesAnchors):
             self._consts = np.ascontiguousarray(np.concatenate(
