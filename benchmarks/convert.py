@@ -12,8 +12,9 @@ repetitions, peak resident memory of the process:
 * ``gsverse-convert --plain`` (format only: the same PLY → ``KHR_gaussian_splatting`` GLB);
 * ``gsverse-convert --mesh`` (anchored to the mesh: binding, sorting, the anchor accessors);
 
-with the ratios the goals are stated in: plain / splat-transform, anchored / plain, and each
-peak RSS / the input file's size. Then where the memory of the plain conversion goes, stage by
+with the ratios the goals are stated in: plain / splat-transform, anchored / plain (each the
+median over the rounds of the two commands' times in the same round), and each peak RSS / the
+input file's size. Then where the memory of the plain conversion goes, stage by
 stage (numpy's allocations traced by ``tracemalloc``, the process's resident and peak memory
 after each stage), and a scaling table (``--sizes``, default 100k, 1M, 4M splats on the same
 mesh): plain and anchored conversion and ``gsverse-validate`` of the anchored output, with the
@@ -39,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .convert_report import markdown
 from .processes import run_process
 
 HERE = Path(__file__).resolve().parent
@@ -186,39 +188,62 @@ def _warm_bytes(previous: list[dict], first: int) -> int:
     return int(max(peaks) * 2**20) if peaks else first
 
 
-def _median_runs(commands: dict[str, tuple[list[str], Path]], repeat: int,
+def _median_runs(commands: dict[str, tuple[list[str], Path | None]], repeat: int,
                  warm: int) -> dict[str, dict]:
-    """Each command ``repeat`` times, the commands interleaved (round by round, so that a
-    slower spell of the machine falls on all of them), with medians per command."""
+    """Each command ``repeat`` times, the commands interleaved round by round (so that a slower
+    spell of the machine falls on all of them), the order rotated by one each round (so that
+    no command always runs right after the same one), with medians per command and each
+    round's wall times (``walls``, None where the command was not run; for
+    :func:`paired_ratio`). ``commands``: key -> (command, output file or None); a command that
+    fails is not run again and reports its error."""
+    keys = list(commands)
     runs: dict[str, list[dict]] = {key: [] for key in commands}
+    walls: dict[str, list[float | None]] = {key: [] for key in commands}
     errors: dict[str, dict] = {}
-    for _ in range(repeat):
-        for key, (cmd, output) in commands.items():
+    for round_ in range(repeat):
+        turn = round_ % len(keys) if keys else 0
+        for key in keys[turn:] + keys[:turn]:
+            cmd, output = commands[key]
             if key in errors:
+                walls[key].append(None)
                 continue
-            if output.exists():
+            if output is not None and output.exists():
                 output.unlink()
             r = run_process(cmd, env=_env(), warm=_warm_bytes(runs[key], warm))
             if r["rc"] != 0:
                 errors[key] = {"error": r["output"][-2000:], "command": " ".join(cmd)}
+                walls[key].append(None)
                 continue
             runs[key].append(r)
+            walls[key].append(r["wall_s"])
     res: dict[str, dict] = {}
     for key, (_, output) in commands.items():
         if key in errors:
             res[key] = errors[key]
             continue
-        walls = [r["wall_s"] for r in runs[key]]
-        res[key] = {"wall_s": float(np.median(walls)), "best_s": float(min(walls)),
+        times = [r["wall_s"] for r in runs[key]]
+        res[key] = {"wall_s": float(np.median(times)), "best_s": float(min(times)),
                     "peak_rss_mb": float(max(r["peak_rss_mb"] for r in runs[key])),
-                    "output_mb": output.stat().st_size / 2**20}
+                    "walls": walls[key]}
+        if output is not None:
+            res[key]["output_mb"] = output.stat().st_size / 2**20
     return res
+
+
+def paired_ratio(a: dict, b: dict) -> float:
+    """The median over the rounds of ``a``'s wall time over ``b``'s in the same round (two
+    results of :func:`_median_runs`): a slower spell of the machine that falls on one round
+    moves both of its times, and so the ratio less than either median. NaN without a round
+    in which both ran."""
+    pairs = [x / y for x, y in zip(a.get("walls", []), b.get("walls", []))
+             if x is not None and y is not None]
+    return float(np.median(pairs)) if pairs else float("nan")
 
 
 def head_to_head(folder: Path, splats: Path, mesh_path: Path, repeat: int, log) -> dict:
     """The three conversions of the same PLY, side by side (interleaved rounds)."""
     res: dict = {}
-    commands: dict[str, tuple[list[str], Path]] = {}
+    commands: dict[str, tuple[list[str], Path | None]] = {}
     problem = splat_transform_problem()
     if problem is None:
         out = folder / "splat-transform.glb"
@@ -263,7 +288,8 @@ def _read_through(path: Path) -> None:
 
 def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = ROUNDS) -> list[dict]:
     """Plain and anchored conversion (mesh as PLY and as OBJ) and validation at each size:
-    ``rounds`` interleaved rounds of the four commands, medians."""
+    ``rounds`` interleaved rounds of the four commands (:func:`_median_runs`), medians, and
+    each anchored conversion's :func:`paired_ratio` to the plain one."""
     rows = []
     for name in sizes:
         n = SIZES[name]
@@ -275,35 +301,28 @@ def scaling(folder: Path, mesh, sizes: list[str], log, rounds: int = ROUNDS) -> 
         row: dict = {"size": name, "n_splats": n, "input_mb": splats.stat().st_size / 2**20,
                      "rounds": rounds}
         plain, anchored = d / "plain.glb", d / "anchored.glb"
-        runs = {
-            "plain": _python("gsverse_format.cli.convert", str(splats), str(plain), "--plain",
-                             "-q", "-w"),
-            "anchored": _python("gsverse_format.cli.convert", str(splats), str(anchored),
-                                "--mesh", str(mesh_path), "-q", "-w"),
-            "anchored_obj": _python("gsverse_format.cli.convert", str(splats),
-                                    str(d / "anchored-obj.glb"), "--mesh", str(d / "mesh.obj"),
-                                    "-q", "-w"),
-            "validate": _python("gsverse_format.validators.cli", str(anchored)),
+        anchored_obj = d / "anchored-obj.glb"
+        runs: dict[str, tuple[list[str], Path | None]] = {
+            "plain": (_python("gsverse_format.cli.convert", str(splats), str(plain), "--plain",
+                              "-q", "-w"), plain),
+            "anchored": (_python("gsverse_format.cli.convert", str(splats), str(anchored),
+                                 "--mesh", str(mesh_path), "-q", "-w"), anchored),
+            "anchored_obj": (_python("gsverse_format.cli.convert", str(splats),
+                                     str(anchored_obj), "--mesh", str(d / "mesh.obj"), "-q",
+                                     "-w"), anchored_obj),
+            # validates the anchored output of the same round, or of the round before
+            "validate": (_python("gsverse_format.validators.cli", str(anchored)), None),
         }
-        times: dict[str, list[float]] = {key: [] for key in runs}
-        done: dict[str, list[dict]] = {key: [] for key in runs}
-        for _ in range(rounds):
-            for key, cmd in runs.items():
-                if f"{key}_error" in row:
-                    continue
-                r = run_process(cmd, env=_env(),
-                                warm=_warm_bytes(done[key], 3 * splats.stat().st_size))
-                done[key].append(r)
-                if r["rc"] != 0:
-                    row[f"{key}_error"] = r["output"][-500:]
-                    continue
-                times[key].append(r["wall_s"])
-                row[f"{key}_peak_rss_mb"] = max(row.get(f"{key}_peak_rss_mb", 0.0),
-                                                r["peak_rss_mb"])
-        for key, values in times.items():
-            if values and f"{key}_error" not in row:
-                row[f"{key}_s"] = float(np.median(values))
-                row[f"{key}_us_per_splat"] = row[f"{key}_s"] / n * 1e6
+        res = _median_runs(runs, rounds, 3 * splats.stat().st_size)
+        for key, r in res.items():
+            if "error" in r:
+                row[f"{key}_error"] = r["error"][-500:]
+                continue
+            row[f"{key}_s"] = r["wall_s"]
+            row[f"{key}_us_per_splat"] = r["wall_s"] / n * 1e6
+            row[f"{key}_peak_rss_mb"] = r["peak_rss_mb"]
+            if key.startswith("anchored") and "wall_s" in res["plain"]:
+                row[f"{key}_over_plain"] = paired_ratio(r, res["plain"])
         rows.append(row)
         shutil.rmtree(d)
     return rows
@@ -373,9 +392,9 @@ def run(quick: bool = False, log=print, workdir: str | None = None,
         st, plain, anchored = res["splat_transform"], res["plain"], res["anchored"]
         ratios: dict = {}
         if "wall_s" in plain and "wall_s" in st:
-            ratios["plain_over_splat_transform"] = plain["wall_s"] / st["wall_s"]
+            ratios["plain_over_splat_transform"] = paired_ratio(plain, st)
         if "wall_s" in plain and "wall_s" in anchored:
-            ratios["anchored_over_plain"] = anchored["wall_s"] / plain["wall_s"]
+            ratios["anchored_over_plain"] = paired_ratio(anchored, plain)
         for key, r in (("splat_transform", st), ("plain", plain), ("anchored", anchored)):
             if "peak_rss_mb" in r:
                 ratios[f"{key}_rss_over_input"] = r["peak_rss_mb"] / input_mb
@@ -399,184 +418,6 @@ def run(quick: bool = False, log=print, workdir: str | None = None,
     res["seconds"] = time.perf_counter() - t_start
     log(f"convert: done in {res['seconds']:.1f} s")
     return res
-
-
-# ---------------------------------------------------------------------------- report
-
-
-def _f(x, digits: int = 3) -> str:
-    if x is None or (isinstance(x, float) and not np.isfinite(x)):
-        return "–"
-    return f"{x:.{digits}g}"
-
-
-def _table(header: list[str], rows: list[list]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
-    lines += ["| " + " | ".join(str(c) for c in row) + " |" for row in rows]
-    return "\n".join(lines)
-
-
-def _goal(what: str, value: float, limit: float, low: float | None = None) -> str:
-    """``what: value× (goal ≤ limit: met / missed by …)``; with ``low``, the goal is the band
-    [low, limit]."""
-    if low is None:
-        ok, band = value <= limit, f"≤ {limit:g}"
-        miss = 100.0 * (value / limit - 1.0)
-    else:
-        ok, band = low <= value <= limit, f"{low:g}–{limit:g}"
-        miss = 100.0 * (value / limit - 1.0 if value > limit else 1.0 - value / low)
-    verdict = "met" if ok else f"missed by {miss:.0f} %"
-    return f"{what}: **{value:.2f}×** (goal {band}: {verdict})"
-
-
-def scaling_markdown(scale: list[dict], n_faces: int) -> list[str]:
-    """The scaling table and its goals: anchored ≤ 1.5× plain at every size, with the mesh as
-    PLY and as OBJ; time per splat from 1M to 4M not growing by more than 20 %; peak RSS ≤ 3×
-    the input."""
-    if not scale:
-        return []
-    rounds = scale[0].get("rounds", 1)
-    L = [f"Scaling (the same {n_faces:,}-face mesh, as PLY and as OBJ; each command a fresh "
-         f"process, the four commands interleaved, median of {rounds} round(s); µs per splat = "
-         "wall time / splats, start-up included; peak = the largest peak RSS of the rounds, "
-         "over the input file's size; memory made resident before each run, untimed, see "
-         "`benchmarks/processes.py`):", ""]
-    rows = []
-    for r in scale:
-        row = [f"{r['n_splats']:,}", _f(r["input_mb"])]
-        for key in ("plain", "anchored", "anchored_obj", "validate"):
-            if f"{key}_s" not in r:
-                row += ["failed", "–", "–"]
-                continue
-            middle = (_f(r[f"{key}_us_per_splat"]) if key in ("plain", "validate") or
-                      "plain_s" not in r else f"{r[f'{key}_s'] / r['plain_s']:.2f}×")
-            row += [_f(r[f"{key}_s"]), middle, _f(r[f"{key}_peak_rss_mb"] / r["input_mb"])]
-        rows.append(row)
-    L.append(_table(["splats", "input MiB", "plain s", "plain µs/splat", "plain peak ×",
-                     "anchored (PLY mesh) s", "× plain", "peak ×", "anchored (OBJ mesh) s",
-                     "× plain", "peak ×", "validate s", "validate µs/splat", "peak ×"], rows))
-    L.append("")
-    goals = []
-    for r in scale:
-        for key, what in (("anchored", "PLY"), ("anchored_obj", "OBJ")):
-            if f"{key}_s" in r and "plain_s" in r:
-                goals.append(_goal(f"{r['n_splats']:,} splats, anchored ({what} mesh) / `--plain`",
-                                   r[f"{key}_s"] / r["plain_s"], 1.5))
-    by_n = {r["n_splats"]: r for r in scale}
-    if 1_000_000 in by_n and 4_000_000 in by_n:
-        a, b = by_n[1_000_000], by_n[4_000_000]
-        for key, what in (("plain", "`--plain`"), ("anchored", "anchored"),
-                          ("validate", "`gsverse-validate`")):
-            if f"{key}_us_per_splat" in a and f"{key}_us_per_splat" in b:
-                # flat means no growth per splat: below 0.8 the process's fixed costs (start-up,
-                # imports, numba's set-up) are spread over four times the splats
-                ratio = b[f"{key}_us_per_splat"] / a[f"{key}_us_per_splat"]
-                goals.append(_goal(f"{what} time per splat, 4M / 1M", ratio, 1.2)
-                             + (" (lower at 4M: the fixed costs of a process spread over more "
-                                "splats)" if ratio < 0.8 else ""))
-    # (below 1M splats the interpreter and the libraries outweigh the input)
-    worst = max(((r[k] / r["input_mb"], r["n_splats"]) for r in scale for k in r
-                 if k.endswith("_peak_rss_mb") and r["n_splats"] >= 1_000_000), default=None)
-    if worst is not None:
-        goals.append(_goal(f"largest peak RSS / input (at {worst[1]:,} splats)", worst[0], 3.0))
-    return L + [f"- {g}" for g in goals] + [""]
-
-
-def first_run_markdown(first: dict) -> list[str]:
-    """The first conversion after installing, against a warm one."""
-    if not first:
-        return []
-    if "skipped" in first:
-        return [f"First anchored conversion after installing: {first['skipped']}.", ""]
-    L = [f"First anchored conversion after installing ({first['n_splats']:,} splats, "
-         f"{first['n_faces']:,} faces; an empty `NUMBA_CACHE_DIR`; each a fresh process):", ""]
-    if "error" in first:
-        return L + ["The measurement failed:", "", "```", first["error"], "```", ""]
-    L.append(_table(["run", "wall s", "/ warm"], [
-        ["an empty numba cache, no precompile (an anchored conversion runs no numba kernel)",
-         _f(first["uncompiled_s"]),
-         f"{first['uncompiled_over_warm']:.2f}×"],
-        ["`python -m gsverse_format.precompile` (the README's set-up)", _f(first["precompile_s"]),
-         "–"],
-        ["first conversion after it", _f(first["first_s"]), f"{first['first_over_warm']:.2f}×"],
-        ["warm (median of two later runs)", _f(first["warm_s"]), "1×"]]))
-    L.append("")
-    L.append("- " + _goal("first conversion after installing / warm", first["first_over_warm"], 1.5))
-    return L + [""]
-
-
-def markdown(conv: dict) -> list[str]:
-    """The report section (Markdown lines) for the result of :func:`run`."""
-    L = ["## `gsverse-convert` end to end", ""]
-    if not conv:
-        return L + ["Not run.", ""]
-    if "plain" not in conv:   # a failure before the runs
-        return L + ["The benchmark failed:", "", "```", str(conv.get("error", "")), "```", ""]
-    input_mb = conv["input_mb"]
-    L.append(f"A 3DGS PLY of {conv['n_splats']:,} splats (SH degree 3 with normals, "
-             f"{input_mb:.1f} MiB) and a {conv['n_faces']:,}-face mesh PLY; each command a fresh "
-             f"process, the commands interleaved, median of {conv['repeat']} round(s); peak RSS of "
-             "the process; memory made resident before each run, untimed (a virtual machine's "
-             "free page reporting otherwise adds up to a second to a run, see "
-             "`benchmarks/processes.py`).")
-    L.append("")
-    rows = []
-    st = conv["splat_transform"]
-    label = f"PlayCanvas `splat-transform` {conv.get('splat_transform_version', '')}, PLY → GLB"
-    named = ((label.replace("  ", " "), st), ("`gsverse-convert --plain` (format only)", conv["plain"]),
-             ("`gsverse-convert --mesh` (anchored)", conv["anchored"]))
-    for name, r in named:
-        if "skipped" in r:
-            rows.append([name, f"skipped: {r['skipped']}", "–", "–", "–"])
-        elif "error" in r:
-            rows.append([name, "failed: " + r["error"].strip().splitlines()[-1][:120], "–", "–", "–"])
-        else:
-            rows.append([name, _f(r["wall_s"]), _f(r["peak_rss_mb"], 4),
-                         _f(r["peak_rss_mb"] / input_mb), _f(r["output_mb"], 4)])
-    L.append(_table(["run", "wall s", "peak RSS MiB", "peak RSS / input", "output MiB"], rows))
-    L.append("")
-    ratios = conv.get("ratios", {})
-
-    def goal(what: str, value: float, limit: float) -> str:
-        verdict = "met" if value <= limit else f"missed by {100.0 * (value / limit - 1.0):.0f} %"
-        return f"{what}: **{value:.2f}×** (goal ≤ {limit:g}: {verdict})"
-
-    goals = []
-    if "plain_over_splat_transform" in ratios:
-        goals.append(goal("`--plain` / splat-transform wall time",
-                          ratios["plain_over_splat_transform"], 1.0))
-    if "anchored_over_plain" in ratios:
-        goals.append(goal("anchored / `--plain` wall time", ratios["anchored_over_plain"], 1.5))
-    for key, what in (("plain", "`--plain`"), ("anchored", "anchored")):
-        if f"{key}_rss_over_input" in ratios:
-            goals.append(goal(f"{what} peak RSS / input size", ratios[f"{key}_rss_over_input"], 3.0))
-    L += [f"- {g}" for g in goals]
-    if conv["n_splats"] < 500_000:
-        L.append(f"- At {conv['n_splats']:,} splats these ratios mostly compare start-up costs "
-                 "(interpreters, imports): the goals are stated for 1M splats.")
-    L.append("")
-    for key, what in (("stages", "plain"), ("anchored_stages", "anchored")):
-        stages = conv.get(key) or []
-        if not stages:
-            continue
-        if "error" in stages[0]:
-            L += [f"The {what} memory breakdown failed:", "", "```", stages[0]["error"], "```", ""]
-            continue
-        L.append(f"Where the memory of the {what} conversion goes (a fresh process; traced: numpy "
-                 "and Python allocations during the stage; RSS and peak RSS of the process after "
-                 "it; the PLY is memory-mapped, so its pages count in RSS but not in the traced "
-                 "bytes" + ("; numba's compiled kernels count in RSS only" if key != "stages" else "")
-                 + "):")
-        L.append("")
-        L.append(_table(["stage", "seconds", "traced peak MiB", "traced kept MiB", "RSS MiB",
-                         "peak RSS MiB"],
-                        [[s["stage"], _f(s["seconds"]), _f(s["traced_peak_mb"]),
-                          _f(s["traced_kept_mb"]), _f(s.get("VmRSS"), 4), _f(s.get("VmHWM"), 4)]
-                         for s in stages]))
-        L.append("")
-    L += scaling_markdown(conv.get("scaling") or [], conv["n_faces"])
-    L += first_run_markdown(conv.get("first_run") or {})
-    return L
 
 
 def main(argv: list[str] | None = None) -> int:
