@@ -1,7 +1,9 @@
 """Rows of arrays taken in a new order: the splats' arrays grouped by face.
 
-:func:`take_rows` is ``array[index]`` along the first axis and :func:`permute_rows_in_place`
-is ``array[:] = array[order]`` without a second copy of the array alive. Both give numpy's
+:func:`take_rows` is ``array[index]`` along the first axis, :func:`permute_rows_in_place`
+is ``array[:] = array[order]`` without a second copy of the array alive, and
+:func:`contiguous_rows` is ``np.ascontiguousarray(view[start:stop])`` for a view of some
+columns of an array (one SH coefficient of every splat, as a glTF writer stores them). Both give numpy's
 result bit for bit: the gathers are byte copies. For integer indices and arrays of at least
 :data:`NATIVE_MIN_BYTES` they run in C (``native/rows/rows_module.c``, built by ``setup.py``
 as the optional extension ``gsverse_format._rows``) on :func:`~gsverse_format.threads.
@@ -23,7 +25,7 @@ import numpy as np
 from .threads import native_threads
 
 __all__ = ["NATIVE_MIN_BYTES", "PERMUTE_BLOCKS", "native_rows_available", "take_rows",
-           "permute_rows_in_place"]
+           "permute_rows_in_place", "contiguous_rows"]
 
 #: Smallest gather (bytes of the result) handed to the C gather; smaller ones cost less in
 #: numpy than starting the threads.
@@ -111,3 +113,43 @@ def permute_rows_in_place(array: np.ndarray, order: np.ndarray) -> None:
             items[:, b] = block.view(items.dtype)[:, 0]
         else:
             items[:, b] = items[order, b]
+
+
+def _column_layout(view: np.ndarray) -> tuple[np.ndarray, int, int, int] | None:
+    """``(base, row_bytes, offset, width)`` when ``view`` is a block of columns of the
+    C-contiguous array ``base`` (the same rows; each of its rows ``width`` contiguous bytes at
+    ``offset`` in a row of ``base`` of ``row_bytes``), else None."""
+    base = view.base
+    if (not isinstance(base, np.ndarray) or view.ndim < 1 or not _plain(base)
+            or view.dtype.hasobject or len(base) != len(view) or len(view) == 0):
+        return None
+    row_bytes = base.nbytes // len(base)
+    width = view.dtype.itemsize
+    for size, stride in zip(view.shape[:0:-1], view.strides[:0:-1]):
+        if size > 1 and stride != width:
+            return None
+        width *= size
+    offset = view.__array_interface__["data"][0] - base.__array_interface__["data"][0]
+    if view.strides[0] != row_bytes or width == 0 or not 0 <= offset <= row_bytes - width:
+        return None
+    return base, row_bytes, offset, width
+
+
+def contiguous_rows(view: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """``np.ascontiguousarray(view[start:stop])``, bit for bit (0 <= start <= stop <= len).
+    A block of :data:`NATIVE_MIN_BYTES` or more of a view of some columns of a C-contiguous
+    array (``sh[:, k, :]``: rows strided, the bytes of a row contiguous) is copied by the C
+    extension's ``columns`` on the native threads: numpy's strided copy of rows of a few
+    bytes is bound by its loop (see ``native/rows/rows_module.c``)."""
+    part = view[start:stop]
+    mod = _module()
+    if mod is None or part.flags.c_contiguous or part.nbytes < NATIVE_MIN_BYTES:
+        return np.ascontiguousarray(part)
+    layout = _column_layout(view)
+    if layout is None:
+        return np.ascontiguousarray(part)
+    base, row_bytes, offset, width = layout
+    out = np.empty(part.shape, view.dtype)
+    mod.columns(base, row_bytes, offset, width, start, out, native_threads())
+    return out
+

@@ -55,6 +55,36 @@ def test_buffer_builder_streams_the_same_bytes_in_small_blocks():
     assert all(o % 4 == 0 for o in offsets) and offsets == sorted(offsets)
 
 
+@pytest.mark.parametrize("block", [100, 4 << 20])
+def test_buffer_builder_copies_column_views_in_c_with_the_same_bytes(monkeypatch, block):
+    """Views of some columns of a float32 array in the component type (one SH coefficient of
+    every splat, as the writer adds them) are made contiguous by the C extension
+    (gsverse_format.rows.contiguous_rows), here for every block: the same bytes."""
+    from gsverse_format import rows
+
+    calls = []
+    module = rows._module()
+    assert module is not None, "gsverse_format._rows was not built"
+
+    class Spy:
+        def columns(self, *args):
+            calls.append(args[1:5])
+            return module.columns(*args)
+
+    monkeypatch.setattr(rows, "_module", lambda: Spy())
+    monkeypatch.setattr(rows, "NATIVE_MIN_BYTES", 0)
+    rng = np.random.default_rng(1)
+    sh = rng.normal(size=(1001, 16, 3)).astype(np.float32)
+    parts = [(sh[:, k, :], FLOAT) for k in range(16)] + [(sh[:, 2:4, 1], FLOAT)]
+    b = BufferBuilder()
+    b.WRITE_BLOCK = block
+    for array, ctype in parts:
+        b.add(array, ctype, "VEC3")
+    assert b.finish() == _reference_blob(parts)
+    assert {c[1] for c in calls} == {12 * k for k in range(16)}   # every coefficient in C
+    assert all(c[0] == 192 and c[2] == 12 for c in calls)
+
+
 def test_buffer_builder_minmax_of_the_stored_values():
     b = BufferBuilder()
     values = np.array([[0.1, -2.0, 3.0], [1e-40, 5.0, -7.25]])   # float64, rounded when stored

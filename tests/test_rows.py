@@ -135,3 +135,70 @@ def test_the_c_gather_refuses_calls_that_would_leave_its_buffers():
         _rows.gather(src, 4, 0, 2, order, np.empty(4, np.uint8)[::-1], 1)   # not contiguous
     with pytest.raises((TypeError, ValueError, BufferError)):
         _rows.gather(src, 4, 0, 2, order, np.frombuffer(b"abcd", np.uint8), 1)  # read-only
+
+
+class ColumnSpy:
+    """The real extension, counting the column copies it is asked for."""
+
+    def __init__(self, module):
+        self.module, self.calls = module, 0
+
+    def columns(self, *args):
+        self.calls += 1
+        return self.module.columns(*args)
+
+
+@pytest.mark.parametrize("threads", ["1", "3"])
+def test_contiguous_rows_of_column_views_equal_numpy(monkeypatch, threads):
+    """Views of some columns of a C-contiguous array are copied in C, byte for byte numpy's
+    copy, for any block of rows; every other view is left to numpy."""
+    monkeypatch.setenv("GSVERSE_THREADS", threads)
+    s = ColumnSpy(rows._module())
+    monkeypatch.setattr(rows, "_module", lambda: s)
+    monkeypatch.setattr(rows, "NATIVE_MIN_BYTES", 0)
+    rng = np.random.default_rng(4)
+    n = 9_000
+    sh = rng.normal(size=(n, 16, 3)).astype(np.float32)
+    structured = arrays(n, rng)["structured"]
+    in_c = [sh[:, 0, :], sh[:, 15, :], sh[:, 3:7, :], sh[:, 5, 1:], structured["c"],
+            rng.normal(size=(n, 4, 2))[:, 1], rng.integers(0, 256, (n, 7), np.uint8)[:, 2:5]]
+    in_numpy = [sh[:, :, 1], sh[::2, 0, :], sh[:, 0, :].T, sh[:, 0, ::2], sh.reshape(-1)[1:],
+                sh[:, 0, :].copy()]
+    for views, in_native in ((in_c, True), (in_numpy, False)):
+        for v in views:
+            for start, stop in ((0, len(v)), (1, len(v) - 1), (4095, 4097), (7, 7)):
+                before = s.calls
+                got = rows.contiguous_rows(v, start, stop)
+                expected = np.ascontiguousarray(v[start:stop])
+                assert got.flags.c_contiguous and got.dtype == expected.dtype
+                assert got.shape == expected.shape and got.tobytes() == expected.tobytes()
+                # a block that is already contiguous (no rows, or one) needs no copy
+                copied = in_native and not v[start:stop].flags.c_contiguous
+                assert s.calls == before + copied, (v.shape, v.strides, start, stop)
+        assert not in_native or s.calls > 0
+
+
+def test_the_c_column_copy_refuses_calls_that_would_leave_its_buffers():
+    from gsverse_format import _rows
+
+    src = np.arange(12, dtype=np.uint8)                       # 3 rows of 4 bytes
+    dst = np.empty(4, np.uint8)
+    _rows.columns(src, 4, 1, 2, 1, dst, 1)
+    assert list(dst) == [5, 6, 9, 10]
+    for row_bytes, offset, width, first in ((0, 0, 1, 0), (4, 3, 2, 0), (4, -1, 2, 0),
+                                            (4, 0, 0, 0), (4, 0, 2, -1)):
+        with pytest.raises(ValueError, match="layout"):
+            _rows.columns(src, row_bytes, offset, width, first, dst, 1)
+    with pytest.raises(ValueError, match="sizes"):
+        _rows.columns(src, 5, 0, 2, 0, dst, 1)                # 12 bytes are not rows of 5
+    with pytest.raises(ValueError, match="sizes"):
+        _rows.columns(src, 4, 0, 2, 0, np.empty(5, np.uint8), 1)
+    dst[:] = 7
+    for first in (2, 3, 2**62):
+        with pytest.raises(ValueError, match="range"):
+            _rows.columns(src, 4, 0, 2, first, dst, 1)        # rows 2, 3: past the end
+        assert list(dst) == [7, 7, 7, 7]                      # nothing written
+    with pytest.raises((TypeError, ValueError, BufferError)):
+        _rows.columns(src, 4, 0, 2, 0, np.empty(4, np.uint8)[::-1], 1)        # not contiguous
+    with pytest.raises((TypeError, ValueError, BufferError)):
+        _rows.columns(src, 4, 0, 2, 0, np.frombuffer(b"abcd", np.uint8), 1)  # read-only

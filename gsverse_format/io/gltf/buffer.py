@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ...rows import contiguous_rows
 from .accessors import COMPONENT_DTYPES
 
 __all__ = ["ARRAY_BUFFER", "ELEMENT_ARRAY_BUFFER", "BufferBuilder"]
@@ -23,7 +24,9 @@ class BufferBuilder:
 
     ``views`` and ``accessors`` are plain glTF JSON objects. The data are not copied when
     added: the builder keeps the arrays (converted to their component type only when the
-    buffer is written, a few MiB at a time), so they must not change until then.
+    buffer is written, a few MiB at a time; a view of some columns of an array, such as one
+    SH coefficient of every splat, through :func:`gsverse_format.rows.contiguous_rows`), so
+    they must not change until then.
     :meth:`write_to` streams the buffer into a file; :meth:`finish` returns it as bytes.
     ``length`` is the buffer's length so far.
     """
@@ -105,7 +108,9 @@ class BufferBuilder:
                 written = offset
             rows = max(1, self.WRITE_BLOCK // max(1, source[:1].size * dtype.itemsize))
             for start in range(0, len(source), rows):
-                block = np.ascontiguousarray(source[start:start + rows], dtype)
+                block = (contiguous_rows(source, start, min(start + rows, len(source)))
+                         if source.dtype == dtype else
+                         np.ascontiguousarray(source[start:start + rows], dtype))
                 handle.write(block.reshape(-1).view(np.uint8).data)
                 written += block.nbytes
         end = self.pad()
