@@ -44,10 +44,10 @@ faces (about 10 a run), one thread: ``local`` 12.1 → 10.4 ms, ``games`` 16.7 �
 of about 10 splats would leave about 3.5 splats each to the loop's scalar remainder (a scalar
 splat costs about two vector lanes), so from :data:`PAD_FROM` splats on a run is remapped in
 whole vectors, running over into the following runs of its chunk, which then overwrite those
-splats (:func:`_padded_count`). Together with the face blocks, 1M splats on 100k faces, two
-threads, measured side by side: ``local``/affine 3.62 → 3.06 ms; one thread 6.86 → 5.71 ms. With rotations and scales the spans of
-:mod:`gsverse_format.remapping.compiled` stay scalar (more output streams than LLVM checks for
-overlap).
+splats (:func:`_padded_count`). Together with the face blocks, 1M splats on 100k faces,
+measured side by side: ``local``/affine 3.62 → 3.06 ms on two threads, 6.86 → 5.71 ms on one.
+With rotations and scales the spans of :mod:`gsverse_format.remapping.compiled` stay scalar
+(more output streams than LLVM checks for overlap).
 
 A face whose splats straddle a chunk boundary is computed once per chunk. The results do not
 depend on the chunking, the thread count or the path: every splat's result depends only on its
@@ -79,9 +79,9 @@ __all__ = ["CHUNK", "FACE_BLOCK", "RunPlan", "plan_runs", "local_runs", "games_r
 #: Faces the vectorised face step computes together before their splats are remapped (two
 #: AVX2 vectors of float64; its workspace, 35 float64 rows of this many values, is 2.2 KiB).
 #: Measured side by side (two runs), 1M splats on 100k faces, one thread: 8 faces 5.6–5.8 ms,
-#: 16 5.9 ms, 32 6.8 ms, 128 8.5 ms; two threads: 3.2–3.3, 3.4, 3.9, 4.7 ms. Between two blocks the splat
-#: loop streams about ten splats a face, so a small block keeps the faces' gathers, whose
-#: vertices miss the caches, close to the streaming they overlap with.
+#: 16 5.9 ms, 32 6.8 ms, 128 8.5 ms; two threads: 3.2–3.3, 3.4, 3.9, 4.7 ms. Between two
+#: blocks the splat loop streams about ten splats a face, so a small block keeps the faces'
+#: gathers, whose vertices miss the caches, close to the streaming they overlap with.
 FACE_BLOCK = 8
 _IN = 13            # gathered per face: v0, v1, v2 (9), then C_r⁻¹ (i00, i01, i11) and √a_r
 _OUT = 22           # computed per face: the 22 columns of a ``local`` table row
@@ -150,76 +150,75 @@ def _affine_block(vertices, faces, rest, run_face, b0, m, ws, scratch, qrun):
     Faces degenerate at rest are recomputed by that scalar row (into ``scratch``, float32)
     and copied back."""
     B = FACE_BLOCK
-    if m > 0:
-        for j in range(m):                                   # gather
-            f = run_face[b0 + j]
-            i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
-            ws[0 * B + j] = vertices[i0, 0]
-            ws[1 * B + j] = vertices[i0, 1]
-            ws[2 * B + j] = vertices[i0, 2]
-            ws[3 * B + j] = vertices[i1, 0]
-            ws[4 * B + j] = vertices[i1, 1]
-            ws[5 * B + j] = vertices[i1, 2]
-            ws[6 * B + j] = vertices[i2, 0]
-            ws[7 * B + j] = vertices[i2, 1]
-            ws[8 * B + j] = vertices[i2, 2]
-            ws[9 * B + j] = rest[f, 0]
-            ws[10 * B + j] = rest[f, 1]
-            ws[11 * B + j] = rest[f, 2]
-            ws[12 * B + j] = rest[f, 3]
-        for j in range(m):                                   # vectorised: no branch, no call
-            x0 = ws[0 * B + j]
-            y0 = ws[1 * B + j]
-            z0 = ws[2 * B + j]
-            e1x = ws[3 * B + j] - x0
-            e1y = ws[4 * B + j] - y0
-            e1z = ws[5 * B + j] - z0
-            e2x = ws[6 * B + j] - x0
-            e2y = ws[7 * B + j] - y0
-            e2z = ws[8 * B + j] - z0
-            i00 = ws[9 * B + j]
-            i01 = ws[10 * B + j]
-            i11 = ws[11 * B + j]
-            root_r = ws[12 * B + j]
-            cx = e1y * e2z - e1z * e2y
-            cy = e1z * e2x - e1x * e2z
-            cz = e1x * e2y - e1y * e2x
-            root_c = np.sqrt(np.sqrt(cx * cx + cy * cy + cz * cz))
-            k = root_c / root_r
-            s = root_c * root_r
-            positive = root_c > 0.0
-            mx = cx / s if positive else 0.0
-            my = cy / s if positive else 0.0
-            mz = cz / s if positive else 0.0
-            o = _IN * B + j
-            ws[o + 0 * B] = x0
-            ws[o + 1 * B] = y0
-            ws[o + 2 * B] = z0
-            ws[o + 3 * B] = e1x
-            ws[o + 4 * B] = e1y
-            ws[o + 5 * B] = e1z
-            ws[o + 6 * B] = e2x
-            ws[o + 7 * B] = e2y
-            ws[o + 8 * B] = e2z
-            ws[o + 9 * B] = mx
-            ws[o + 10 * B] = my
-            ws[o + 11 * B] = mz
-            ws[o + 12 * B] = e1x * i00
-            ws[o + 13 * B] = e1x * i01 + e2x * i11
-            ws[o + 14 * B] = mx
-            ws[o + 15 * B] = e1y * i00
-            ws[o + 16 * B] = e1y * i01 + e2y * i11
-            ws[o + 17 * B] = my
-            ws[o + 18 * B] = e1z * i00
-            ws[o + 19 * B] = e1z * i01 + e2z * i11
-            ws[o + 20 * B] = mz
-            ws[o + 21 * B] = k
-        for j in range(m):                                   # faces degenerate at rest
-            f = run_face[b0 + j]
-            if rest[f, 4] == 0.0:
-                local_face_row(vertices, faces, rest, False, f, scratch, qrun, b0 + j, False)
-                for c in range(_OUT):
-                    ws[(_IN + c) * B + j] = scratch[c]
+    for j in range(m):                                   # gather
+        f = run_face[b0 + j]
+        i0, i1, i2 = faces[f, 0], faces[f, 1], faces[f, 2]
+        ws[0 * B + j] = vertices[i0, 0]
+        ws[1 * B + j] = vertices[i0, 1]
+        ws[2 * B + j] = vertices[i0, 2]
+        ws[3 * B + j] = vertices[i1, 0]
+        ws[4 * B + j] = vertices[i1, 1]
+        ws[5 * B + j] = vertices[i1, 2]
+        ws[6 * B + j] = vertices[i2, 0]
+        ws[7 * B + j] = vertices[i2, 1]
+        ws[8 * B + j] = vertices[i2, 2]
+        ws[9 * B + j] = rest[f, 0]
+        ws[10 * B + j] = rest[f, 1]
+        ws[11 * B + j] = rest[f, 2]
+        ws[12 * B + j] = rest[f, 3]
+    for j in range(m):                                   # vectorised: no branch, no call
+        x0 = ws[0 * B + j]
+        y0 = ws[1 * B + j]
+        z0 = ws[2 * B + j]
+        e1x = ws[3 * B + j] - x0
+        e1y = ws[4 * B + j] - y0
+        e1z = ws[5 * B + j] - z0
+        e2x = ws[6 * B + j] - x0
+        e2y = ws[7 * B + j] - y0
+        e2z = ws[8 * B + j] - z0
+        i00 = ws[9 * B + j]
+        i01 = ws[10 * B + j]
+        i11 = ws[11 * B + j]
+        root_r = ws[12 * B + j]
+        cx = e1y * e2z - e1z * e2y
+        cy = e1z * e2x - e1x * e2z
+        cz = e1x * e2y - e1y * e2x
+        root_c = np.sqrt(np.sqrt(cx * cx + cy * cy + cz * cz))
+        k = root_c / root_r
+        s = root_c * root_r
+        positive = root_c > 0.0
+        mx = cx / s if positive else 0.0
+        my = cy / s if positive else 0.0
+        mz = cz / s if positive else 0.0
+        o = _IN * B + j
+        ws[o + 0 * B] = x0
+        ws[o + 1 * B] = y0
+        ws[o + 2 * B] = z0
+        ws[o + 3 * B] = e1x
+        ws[o + 4 * B] = e1y
+        ws[o + 5 * B] = e1z
+        ws[o + 6 * B] = e2x
+        ws[o + 7 * B] = e2y
+        ws[o + 8 * B] = e2z
+        ws[o + 9 * B] = mx
+        ws[o + 10 * B] = my
+        ws[o + 11 * B] = mz
+        ws[o + 12 * B] = e1x * i00
+        ws[o + 13 * B] = e1x * i01 + e2x * i11
+        ws[o + 14 * B] = mx
+        ws[o + 15 * B] = e1y * i00
+        ws[o + 16 * B] = e1y * i01 + e2y * i11
+        ws[o + 17 * B] = my
+        ws[o + 18 * B] = e1z * i00
+        ws[o + 19 * B] = e1z * i01 + e2z * i11
+        ws[o + 20 * B] = mz
+        ws[o + 21 * B] = k
+    for j in range(m):                                   # faces degenerate at rest
+        f = run_face[b0 + j]
+        if rest[f, 4] == 0.0:
+            local_face_row(vertices, faces, rest, False, f, scratch, qrun, b0 + j, False)
+            for c in range(_OUT):
+                ws[(_IN + c) * B + j] = scratch[c]
 
 
 @njit(cache=True, inline="always")
