@@ -411,11 +411,18 @@ def local_face_row(vertices, faces, rest, rigid, f, row, qtab, qi, want_q):
 @njit(cache=True, inline="always")
 def local_splat_row(consts, t, means, cov6, i):
     """Mean and covariance of ``local`` splat ``i`` from its face's table row ``t``."""
+    local_splat_on(consts, (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10],
+                            t[11], t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19],
+                            t[20]), means, cov6, i)
+
+
+@njit(cache=True, inline="always")
+def local_splat_on(consts, face, means, cov6, i):
+    """Mean and covariance of ``local`` splat ``i`` on ``face``, the first 21 values of its
+    face's table row (a tuple, as :func:`local_splat` takes it)."""
     c = consts[i]
     mx, my, mz, s00, s01, s02, s11, s12, s22 = local_splat(
-        (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11]),
-        (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11],
-         t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19], t[20]))
+        (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11]), face)
     means[i, 0] = mx
     means[i, 1] = my
     means[i, 2] = mz

@@ -70,7 +70,8 @@ from numba import njit, prange
 from ..backend import configure_numba
 from ..compiled_chunks import next_chunk
 from .compiled import (CHUNK, TABLE_WIDTH, games_face_row, games_splat, games_splat_row,
-                       games_splat_span, local_face_row, local_splat, local_splat_span)
+                       games_splat_span, local_face_row, local_splat, local_splat_on,
+                       local_splat_span)
 
 configure_numba()
 
@@ -305,20 +306,7 @@ def _local_splats(consts, face, means, cov6, flat_consts, flat_means, flat_cov6,
         _local_run_splats(flat_consts, face, flat_means, flat_cov6, first, count)
     else:
         for j in range(count):
-            i = first + j
-            c = consts[i]
-            mx, my, mz, s00, s01, s02, s11, s12, s22 = local_splat(
-                (c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10], c[11]),
-                face)
-            means[i, 0] = mx
-            means[i, 1] = my
-            means[i, 2] = mz
-            cov6[i, 0] = s00
-            cov6[i, 1] = s01
-            cov6[i, 2] = s02
-            cov6[i, 3] = s11
-            cov6[i, 4] = s12
-            cov6[i, 5] = s22
+            local_splat_on(consts, face, means, cov6, first + j)
 
 
 @njit(parallel=True, cache=True)
