@@ -3,8 +3,8 @@
 :func:`take_rows` is ``array[index]`` along the first axis, :func:`permute_rows_in_place`
 is ``array[:] = array[order]`` without a second copy of the array alive, and
 :func:`contiguous_rows` is ``np.ascontiguousarray(view[start:stop])`` for a view of some
-columns of an array (one SH coefficient of every splat, as a glTF writer stores them). Both give numpy's
-result bit for bit: the gathers are byte copies. For integer indices and arrays of at least
+columns of an array (one SH coefficient of every splat, as a glTF writer stores them). All
+three give numpy's result bit for bit: the gathers are byte copies. For integer indices and arrays of at least
 :data:`NATIVE_MIN_BYTES` they run in C (``native/rows/rows_module.c``, built by ``setup.py``
 as the optional extension ``gsverse_format._rows``) on :func:`~gsverse_format.threads.
 native_threads` threads, prefetching the rows ahead; numpy's ``take`` copies one row at a
