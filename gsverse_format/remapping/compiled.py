@@ -411,9 +411,15 @@ def local_face_row(vertices, faces, rest, rigid, f, row, qtab, qi, want_q):
 @njit(cache=True, inline="always")
 def local_splat_row(consts, t, means, cov6, i):
     """Mean and covariance of ``local`` splat ``i`` from its face's table row ``t``."""
-    local_splat_on(consts, (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10],
-                            t[11], t[12], t[13], t[14], t[15], t[16], t[17], t[18], t[19],
-                            t[20]), means, cov6, i)
+    local_splat_on(consts, row_face(t), means, cov6, i)
+
+
+@njit(cache=True, inline="always")
+def row_face(t):
+    """The first 21 values of the ``local`` table row ``t``, as the tuple :func:`local_splat`
+    takes."""
+    return (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7], t[8], t[9], t[10], t[11], t[12],
+            t[13], t[14], t[15], t[16], t[17], t[18], t[19], t[20])
 
 
 @njit(cache=True, inline="always")

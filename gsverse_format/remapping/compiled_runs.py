@@ -71,7 +71,7 @@ from ..backend import configure_numba
 from ..compiled_chunks import next_chunk
 from .compiled import (CHUNK, TABLE_WIDTH, games_face_row, games_splat, games_splat_row,
                        games_splat_span, local_face_row, local_splat, local_splat_on,
-                       local_splat_span)
+                       local_splat_span, row_face)
 
 configure_numba()
 
@@ -356,14 +356,11 @@ def local_runs(vertices: np.ndarray, faces: np.ndarray, rest: np.ndarray, rigid:
                                  rotations, scales, start, stop, want)
             else:
                 for r in range(chunk_run[c], chunk_run[c + 1]):
-                    t = table[r]
                     first = run_start[r]
                     count = _padded_count(first, np.int64(run_start[r + 1]) - np.int64(first),
                                           stop)
-                    _local_splats(consts, (t[0], t[1], t[2], t[3], t[4], t[5], t[6], t[7],
-                                           t[8], t[9], t[10], t[11], t[12], t[13], t[14],
-                                           t[15], t[16], t[17], t[18], t[19], t[20]),
-                                  means, cov6, flat_consts, flat_means, flat_cov6, first, count)
+                    _local_splats(consts, row_face(table[r]), means, cov6, flat_consts,
+                                  flat_means, flat_cov6, first, count)
 
 
 @njit(cache=True, inline="always")
